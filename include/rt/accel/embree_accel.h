@@ -1,0 +1,31 @@
+#pragma once
+// Embree 3 backend. This header and embree_accel.cpp are the only places that know Embree exists;
+// the Embree headers are included by the .cpp alone.
+
+#include <memory>
+
+#include "rt/accel/accel.h"
+
+namespace rt {
+
+// One RTCDevice and one RTCScene holding a single triangle geometry whose vertex and index
+// buffers are shared with `scene` (no copies). Closest hit via rtcIntersect1, shadows via
+// rtcOccluded1. Embree's error callback only records; the constructor throws RuntimeError
+// with the recorded message if device creation or the BVH build failed.
+class EmbreeAccel final : public Accel {
+ public:
+  explicit EmbreeAccel(const FlatScene& scene);
+  ~EmbreeAccel() override;
+  EmbreeAccel(const EmbreeAccel&) = delete;
+  EmbreeAccel& operator=(const EmbreeAccel&) = delete;
+
+  Hit intersect(const Ray& ray) const override;
+  bool occluded(const Ray& ray) const override;
+  std::string_view name() const override { return "embree"; }
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace rt

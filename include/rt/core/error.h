@@ -1,0 +1,24 @@
+#pragma once
+// Error types thrown at load, parse and I/O boundaries and caught once by the CLI.
+
+#include <stdexcept>
+#include <string>
+
+namespace rt {
+
+// Bad input that the user can fix: a missing file, malformed data, an invalid value.
+// what() is one line "FILE:WHERE: REASON" (WHERE is a line number or a JSON path and may
+// be empty); the CLI prints it and exits with status 1.
+class InputError : public std::runtime_error {
+ public:
+  InputError(const std::string& file, const std::string& where, const std::string& reason);
+  explicit InputError(const std::string& message) : std::runtime_error(message) {}
+};
+
+// A failure outside the input's control (Embree, file system, out of memory). Exit status 1.
+class RuntimeError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+}  // namespace rt

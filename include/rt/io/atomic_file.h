@@ -1,0 +1,20 @@
+#pragma once
+// Writing files so that a reader never sees a partial one: write a temporary sibling, then rename.
+
+#include <filesystem>
+#include <string>
+
+namespace rt {
+
+// A path in the same directory as `destination`, with the same extension (so format plugins that
+// key on it still work), unique per process and call, hidden (leading dot).
+std::filesystem::path temporary_sibling(const std::filesystem::path& destination);
+
+// Renames the finished `temporary` over `destination` (atomic on POSIX). On failure removes
+// `temporary` and throws RuntimeError; `destination` is then untouched.
+void commit_temporary(const std::filesystem::path& temporary, const std::filesystem::path& destination);
+
+// Writes `content` to `path` through a temporary sibling. Throws RuntimeError on failure.
+void write_text_file_atomically(const std::string& path, const std::string& content);
+
+}  // namespace rt

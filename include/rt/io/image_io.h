@@ -1,0 +1,36 @@
+#pragma once
+// Image output through OpenImageIO, format chosen by the file extension.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "rt/core/image.h"
+
+namespace rt {
+
+// 8-bit quantisation of the course scenes: clamp to [0, 1], then byte = floor(255 c), no gamma.
+// (The CSE167x references were made this way; round() would disagree on most pixels.)
+std::uint8_t quantize_8bit(float c);
+
+// The image as interleaved 8-bit RGB, rows top to bottom, quantised by quantize_8bit.
+std::vector<std::uint8_t> to_rgb8(const Image& image);
+
+// True for extensions written as linear float (.exr, .hdr, .pfm); everything else is 8-bit.
+bool writes_float(const std::string& path);
+
+// Throws InputError unless OpenImageIO can write the format named by `path`'s extension.
+// Lets callers refuse a bad output name before spending time on a render.
+void require_writable_format(const std::string& path);
+
+// Writes `image` to `path` (png, jpg, exr, hdr, tif, bmp, ppm, pfm and any other OIIO format).
+// The file is written next to the destination under a temporary name and renamed into place,
+// so a failed write never leaves a partial file and never touches an existing one.
+// Throws InputError for an unknown extension, RuntimeError for I/O failures.
+void write_image(const Image& image, const std::string& path);
+
+// Reads any OIIO-readable image as float RGB (extra channels dropped, grey expanded); 8-bit data
+// is mapped to c / 255 without colour conversion. Throws InputError when unreadable.
+Image read_image(const std::string& path);
+
+}  // namespace rt

@@ -1,0 +1,21 @@
+#pragma once
+// Scene loading, one entry point for every format.
+
+#include <string>
+
+#include "rt/scene/scene.h"
+
+namespace rt {
+
+// Loads a scene file, choosing the loader by extension (.json). The result is validated.
+// Throws InputError naming the file, the line or JSON path, and the reason.
+Scene load_scene(const std::string& path);
+
+// Parses the native JSON scene format (see docs/scene-format.md) from `text`; `path` names the
+// source in messages and anchors relative mesh paths. Comments (// and /* */) are allowed.
+Scene parse_scene_json(const std::string& text, const std::string& path);
+
+// The built-in default scene (scenes/default.json, compiled into the binary).
+Scene make_default_scene();
+
+}  // namespace rt

@@ -1,0 +1,30 @@
+#pragma once
+// The batch render loop: tiles in parallel with TBB, one FindColor per pixel.
+
+#include <functional>
+
+#include "rt/accel/accel.h"
+#include "rt/core/image.h"
+#include "rt/render/shade.h"
+
+namespace rt {
+
+struct RenderOptions {
+  int threads = 0;     // worker threads; 0 = all hardware threads
+  int tile_size = 16;  // square tiles, in pixels
+  // Called from worker threads (serialised) with the fraction of tiles done, in [0, 1].
+  std::function<void(double)> on_progress;
+};
+
+struct RenderResult {
+  Image image;
+  RayCounts rays;
+  double seconds = 0.0;  // wall-clock time of the render loop
+};
+
+// Renders scene.settings.width x height pixels. The image is bit-identical whatever the thread
+// count or tile order: each pixel depends only on its own ray. Throws InputError on a bad camera.
+RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel& accel,
+                          const RenderOptions& options);
+
+}  // namespace rt

@@ -1,0 +1,45 @@
+#pragma once
+// FindColor: the seed's Phong / Blinn-Phong shading with shadow rays and recursive mirror
+// reflection, on top of either Accel backend.
+
+#include <cstdint>
+
+#include "rt/accel/accel.h"
+#include "rt/flatten/flatten.h"
+#include "rt/scene/scene.h"
+
+namespace rt {
+
+// Rays traced, per kind. Each render thread owns one; they are summed afterwards.
+struct RayCounts {
+  std::uint64_t camera = 0;
+  std::uint64_t shadow = 0;
+  std::uint64_t reflection = 0;
+
+  std::uint64_t total() const { return camera + shadow + reflection; }
+  RayCounts& operator+=(const RayCounts& other);
+};
+
+// Everything FindColor reads. All references must outlive the shader; it is cheap to copy and
+// thread-safe to use from many threads (each with its own RayCounts).
+struct ShadingContext {
+  const Scene& scene;      // materials, lights, settings (max_depth, background)
+  const FlatScene& flat;   // world-space geometry the accel was built on
+  const Accel& accel;
+};
+
+// The seed's FindColor for a ray whose origin and direction are world space:
+//   R = E + sum_j V_j L_j (C_ambient + C_diffuse max(n.l_j, 0) + C_specular max(n.h_j, 0)^sigma)
+//       + C_specular FindColor(reflected ray)
+// with Blinn-Phong half vectors h_j = normalize(l_j + v), V_j the 0/1 shadow-ray visibility and
+// L_j the light colour divided by the point-light attenuation. depth 0 is the primary hit; the
+// reflection recurses while depth < max_depth. A miss returns settings.background.
+// Computed in double, returned as float32 linear RGB.
+Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCounts& counts);
+
+// Where secondary rays start: the hit point moved off the surface along the geometric normal,
+// to the side `direction` points to, by kRayOffset scaled to the point's magnitude. This is the
+// one place the self-intersection policy lives. World space, double in, float32 out.
+Vec3f offset_ray_origin(const Vec3d& point, const Vec3d& geometric_normal, const Vec3d& direction);
+
+}  // namespace rt

@@ -1,0 +1,98 @@
+#pragma once
+// The hierarchical scene graph, mirroring the seed's RTScene: nodes with a local transform,
+// child nodes and models (geometry + material), plus lights, a camera and render settings.
+// Loaders build it; flatten_scene() turns it into world-space triangle buffers.
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "rt/core/math.h"
+
+namespace rt {
+
+// Phong / Blinn-Phong material of the seed's FindColor. Colours are linear RGB in [0, inf).
+struct Material {
+  std::string name;
+  Color ambient{0.0f};
+  Color diffuse{0.0f};
+  Color specular{0.0f};   // also weights the recursive mirror reflection
+  Color emission{0.0f};
+  float shininess = 1.0f;  // Blinn-Phong exponent sigma, >= 0
+};
+
+// A light in world space. position.w == 0: directional, (x, y, z) is the direction towards the
+// light (need not be unit length). position.w == 1: point light at (x, y, z).
+// Point lights are attenuated by 1 / (c0 + c1 d + c2 d^2), d the world-space distance in scene units;
+// directional lights never are.
+struct Light {
+  Vec4d position{0.0, 0.0, 1.0, 0.0};
+  Color color{1.0f};
+  Vec3d attenuation{1.0, 0.0, 0.0};  // (constant, linear, quadratic)
+
+  bool is_directional() const { return position.w == 0.0; }
+};
+
+// Pinhole camera in world space. fovy_degrees is the full vertical field of view, in (0, 180);
+// the horizontal extent follows from the image aspect ratio width / height.
+struct Camera {
+  Vec3d eye{0.0, 0.0, 5.0};
+  Vec3d target{0.0, 0.0, 0.0};
+  Vec3d up{0.0, 1.0, 0.0};
+  double fovy_degrees = 45.0;
+};
+
+// An indexed triangle mesh in object space (float32, what the renderer finally stores).
+// normals is empty or has one unit vector per position; triangles are counter-clockwise
+// when seen from the side the geometric normal (p1 - p0) x (p2 - p0) points to.
+struct TriangleMesh {
+  std::vector<Vec3f> positions;
+  std::vector<Vec3f> normals;
+  std::vector<Vec3u> triangles;
+};
+
+// A model is a piece of geometry drawn with one material (index into Scene::materials).
+// Meshes are shared so that one loaded mesh can be instanced by many models.
+struct Model {
+  std::shared_ptr<const TriangleMesh> mesh;
+  std::uint32_t material = 0;
+};
+
+// A graph node. parent_from_node maps this node's space to its parent's (double precision).
+// children index Scene::nodes; the graph must be acyclic (flatten_scene checks).
+struct Node {
+  std::string name;
+  Mat4d parent_from_node{1.0};
+  std::vector<std::uint32_t> children;
+  std::vector<Model> models;
+};
+
+// Image and integrator settings carried by a scene file; CLI flags may override them.
+struct RenderSettings {
+  int width = 640;
+  int height = 480;
+  int max_depth = 5;        // 0 = primary hit only; reflections recurse while depth < max_depth
+  Color background{0.0f};   // radiance of rays that miss everything
+  std::string output;       // default output file name; empty means "<scene stem>.png"
+};
+
+struct Scene {
+  std::vector<Node> nodes;  // nodes[root] is the root
+  std::uint32_t root = 0;
+  std::vector<Material> materials;
+  std::vector<Light> lights;
+  Camera camera;
+  RenderSettings settings;
+  std::string source;       // file the scene came from, for messages ("<built-in>" for the default)
+};
+
+// Checks invariants that loaders and hand-built scenes must satisfy (indices in range, finite
+// values, sensible sizes, a valid camera). Throws InputError naming scene.source and the offence.
+void validate_scene(const Scene& scene);
+
+// Throws InputError (naming `source`) unless the camera is usable: finite values, eye != target,
+// up not parallel to the view direction, fovy in (0, 180) degrees.
+void validate_camera(const Camera& camera, const std::string& source);
+
+}  // namespace rt

@@ -1,0 +1,204 @@
+#include "rt/app/cli.h"
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <new>
+#include <optional>
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <tbb/global_control.h>
+#include <tbb/info.h>
+
+#include "rt/accel/accel.h"
+#include "rt/app/progress.h"
+#include "rt/core/error.h"
+#include "rt/flatten/flatten.h"
+#include "rt/io/atomic_file.h"
+#include "rt/io/image_io.h"
+#include "rt/io/load_scene.h"
+#include "rt/render/render.h"
+
+namespace rt {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+struct RenderArgs {
+  std::string scene_path;  // empty: built-in default scene
+  std::string output;
+  std::optional<int> width, height, max_depth;
+  std::string accel = "embree";
+  int threads = 0;
+  std::string stats_path;
+  bool quiet = false;
+};
+
+Scene load_scene_or_default(const std::string& path) { return path.empty() ? make_default_scene() : load_scene(path); }
+
+// Output file when -o is absent: the scene's own "output", else "<scene stem>.png" in the working directory.
+std::string default_output(const Scene& scene, const std::string& scene_path) {
+  if (!scene.settings.output.empty()) return scene.settings.output;
+  if (scene_path.empty()) return "default.png";
+  return std::filesystem::path(scene_path).stem().string() + ".png";
+}
+
+int run_render(const RenderArgs& args) {
+  const auto start = Clock::now();
+  const int threads = args.threads > 0 ? args.threads : tbb::info::default_concurrency();
+  // Limits Embree's BVH build (TBB tasks) as well as the render loop.
+  tbb::global_control thread_limit(tbb::global_control::max_allowed_parallelism, threads);
+  const AccelKind accel_kind = parse_accel_kind(args.accel);
+
+  Scene scene = load_scene_or_default(args.scene_path);
+  if (args.width) scene.settings.width = *args.width;
+  if (args.height) scene.settings.height = *args.height;
+  if (args.max_depth) scene.settings.max_depth = *args.max_depth;
+  validate_scene(scene);
+  const std::string output = args.output.empty() ? default_output(scene, args.scene_path) : args.output;
+  require_writable_format(output);  // fail before rendering, not after
+  const double load_s = seconds_since(start);
+
+  auto phase_start = Clock::now();
+  const FlatScene flat = flatten_scene(scene);
+  const double flatten_s = seconds_since(phase_start);
+
+  phase_start = Clock::now();
+  const std::unique_ptr<Accel> accel = build_accel(accel_kind, flat);
+  const double build_s = seconds_since(phase_start);
+
+  ProgressBar progress("rendering", !args.quiet);
+  RenderOptions options;
+  options.threads = threads;
+  options.on_progress = [&](double fraction) { progress.update(fraction); };
+  const RenderResult result = render_image(scene, flat, *accel, options);
+  progress.finish();
+
+  phase_start = Clock::now();
+  write_image(result.image, output);
+  const double write_s = seconds_since(phase_start);
+  const double total_s = seconds_since(start);
+  const double mrays = result.rays.total() / std::max(result.seconds, 1e-9) / 1e6;
+
+  if (!args.stats_path.empty()) {
+    nlohmann::ordered_json stats;
+    stats["scene"] = args.scene_path.empty() ? "<built-in default>" : args.scene_path;
+    stats["output"] = output;
+    stats["accel"] = to_string(accel_kind);
+    stats["threads"] = threads;
+    stats["image"] = {{"width", scene.settings.width}, {"height", scene.settings.height}};
+    stats["max_depth"] = scene.settings.max_depth;
+    stats["triangles"] = flat.triangle_count();
+    stats["lights"] = scene.lights.size();
+    stats["rays"] = {{"camera", result.rays.camera},
+                     {"shadow", result.rays.shadow},
+                     {"reflection", result.rays.reflection},
+                     {"total", result.rays.total()}};
+    stats["mrays_per_s"] = mrays;
+    stats["time_s"] = {{"load", load_s},     {"flatten", flatten_s}, {"build", build_s},
+                       {"render", result.seconds}, {"write", write_s},   {"total", total_s}};
+    write_text_file_atomically(args.stats_path, stats.dump(2) + "\n");
+  }
+  if (!args.quiet)
+    fmt::print("{}: {}x{}, {} triangles, {} lights, {:.3f} s render, {:.3f} s total, {:.2f} Mrays/s ({}, {} threads)\n",
+               output, scene.settings.width, scene.settings.height, flat.triangle_count(), scene.lights.size(),
+               result.seconds, total_s, mrays, to_string(accel_kind), threads);
+  return 0;
+}
+
+int run_info(const std::string& scene_path) {
+  const Scene scene = load_scene_or_default(scene_path);
+  const FlatScene flat = flatten_scene(scene);
+  std::size_t models = 0;
+  for (const Node& node : scene.nodes) models += node.models.size();
+  Vec3f lo(kInfinity), hi(-kInfinity);
+  for (const Vec3f& p : flat.positions) {
+    lo = glm::min(lo, p);
+    hi = glm::max(hi, p);
+  }
+  const Camera& c = scene.camera;
+  fmt::print("scene       {}\n", scene.source);
+  fmt::print("image       {}x{}, max depth {}, background ({}, {}, {})\n", scene.settings.width,
+             scene.settings.height, scene.settings.max_depth, scene.settings.background.r,
+             scene.settings.background.g, scene.settings.background.b);
+  fmt::print("camera      eye ({}, {}, {}), target ({}, {}, {}), up ({}, {}, {}), fovy {} deg\n", c.eye.x, c.eye.y,
+             c.eye.z, c.target.x, c.target.y, c.target.z, c.up.x, c.up.y, c.up.z, c.fovy_degrees);
+  fmt::print("graph       {} nodes, {} models\n", scene.nodes.size(), models);
+  fmt::print("geometry    {} triangles, {} vertices\n", flat.triangle_count(), flat.positions.size());
+  if (!flat.positions.empty())
+    fmt::print("bounds      ({}, {}, {}) .. ({}, {}, {})\n", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
+  fmt::print("materials   {}\n", scene.materials.size());
+  for (const Material& m : scene.materials)
+    fmt::print("  {:<16} diffuse ({}, {}, {}), specular ({}, {}, {}), shininess {}\n", m.name, m.diffuse.r,
+               m.diffuse.g, m.diffuse.b, m.specular.r, m.specular.g, m.specular.b, m.shininess);
+  fmt::print("lights      {}\n", scene.lights.size());
+  for (const Light& l : scene.lights) {
+    if (l.is_directional())
+      fmt::print("  directional towards ({}, {}, {}), colour ({}, {}, {})\n", l.position.x, l.position.y,
+                 l.position.z, l.color.r, l.color.g, l.color.b);
+    else
+      fmt::print("  point at ({}, {}, {}), colour ({}, {}, {}), attenuation ({}, {}, {})\n", l.position.x,
+                 l.position.y, l.position.z, l.color.r, l.color.g, l.color.b, l.attenuation.x, l.attenuation.y,
+                 l.attenuation.z);
+  }
+  return 0;
+}
+
+}  // namespace
+
+int run_cli(int argc, char** argv) {
+  CLI::App app{"rt: a Whitted ray tracer on Embree, with a double-precision reference intersector"};
+  app.set_version_flag("--version", std::string("rt ") + RT_VERSION);
+  app.require_subcommand(1);
+
+  RenderArgs render_args;
+  CLI::App* render = app.add_subcommand("render", "Render a scene (the built-in default scene when none is given)");
+  render->add_option("scene", render_args.scene_path, "Scene file (.json)");
+  render->add_option("-o,--output", render_args.output,
+                     "Output image; format by extension (png, jpg, exr, hdr, tif, ...). "
+                     "Default: the scene's \"output\", else <scene name>.png");
+  render->add_option("--width", render_args.width, "Image width in pixels")->check(CLI::PositiveNumber);
+  render->add_option("--height", render_args.height, "Image height in pixels")->check(CLI::PositiveNumber);
+  render->add_option("--max-depth", render_args.max_depth, "Reflection depth (0 = no reflections)")
+      ->check(CLI::NonNegativeNumber);
+  render->add_option("--accel", render_args.accel, "Intersector: embree (fast) or reference (double, brute force)")
+      ->check(CLI::IsMember({"embree", "reference"}))
+      ->capture_default_str();
+  render->add_option("--threads", render_args.threads, "Worker threads (0 = all cores)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  render->add_option("--stats", render_args.stats_path, "Write ray counts and phase timings as JSON to this file");
+  render->add_flag("-q,--quiet", render_args.quiet, "No progress bar and no summary line");
+
+  std::string info_path;
+  CLI::App* info = app.add_subcommand("info", "Print what a scene contains (the default scene when none is given)");
+  info->add_option("scene", info_path, "Scene file (.json)");
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& error) {
+    const int code = app.exit(error);  // prints help/version (code 0) or the usage error
+    return code == 0 ? 0 : 2;
+  }
+
+  try {
+    if (*render) return run_render(render_args);
+    if (*info) return run_info(info_path);
+  } catch (const InputError& error) {
+    fmt::print(stderr, "rt: error: {}\n", error.what());
+  } catch (const std::bad_alloc&) {
+    fmt::print(stderr, "rt: error: out of memory\n");
+  } catch (const std::exception& error) {
+    fmt::print(stderr, "rt: error: {}\n", error.what());
+  }
+  return 1;
+}
+
+}  // namespace rt

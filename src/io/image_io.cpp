@@ -1,0 +1,103 @@
+#include "rt/io/image_io.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <system_error>
+
+#include <OpenImageIO/imageio.h>
+#include <fmt/format.h>
+
+#include "rt/core/error.h"
+#include "rt/io/atomic_file.h"
+
+namespace rt {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string lower_extension(const std::string& path) {
+  std::string ext = fs::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext;
+}
+
+}  // namespace
+
+std::uint8_t quantize_8bit(float c) {
+  // NaN fails both comparisons and maps to 0.
+  const float clamped = c > 0.0f ? std::min(c, 1.0f) : 0.0f;
+  return static_cast<std::uint8_t>(std::floor(255.0f * clamped));
+}
+
+std::vector<std::uint8_t> to_rgb8(const Image& image) {
+  std::vector<std::uint8_t> bytes(image.pixels.size() * 3);
+  for (std::size_t i = 0; i < image.pixels.size(); ++i)
+    for (int c = 0; c < 3; ++c) bytes[3 * i + c] = quantize_8bit(image.pixels[i][c]);
+  return bytes;
+}
+
+bool writes_float(const std::string& path) {
+  const std::string ext = lower_extension(path);
+  return ext == ".exr" || ext == ".hdr" || ext == ".pfm";
+}
+
+namespace {
+
+std::unique_ptr<OIIO::ImageOutput> create_output(const std::string& path) {
+  auto output = OIIO::ImageOutput::create(path);
+  if (!output) {
+    OIIO::geterror();  // clear OIIO's pending message; ours says it better
+    const std::string ext = lower_extension(path);
+    throw InputError(path, "", ext.empty() ? "output file has no extension to choose an image format by"
+                                           : fmt::format("unknown image format '{}'", ext));
+  }
+  return output;
+}
+
+}  // namespace
+
+void require_writable_format(const std::string& path) { create_output(path); }
+
+void write_image(const Image& image, const std::string& path) {
+  auto output = create_output(path);
+  const bool as_float = writes_float(path);
+  OIIO::ImageSpec spec(image.width, image.height, 3, as_float ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8);
+  std::vector<std::uint8_t> bytes;
+  const void* data = image.pixels.data();
+  if (!as_float) {
+    bytes = to_rgb8(image);
+    data = bytes.data();
+  }
+
+  const fs::path destination(path);
+  const fs::path temporary = temporary_sibling(destination);
+  const bool written = output->open(temporary.string(), spec) && output->write_image(spec.format, data) &&
+                       output->close();
+  std::error_code ignored;
+  if (!written) {
+    const std::string reason = output->geterror();
+    output.reset();
+    fs::remove(temporary, ignored);
+    throw RuntimeError(fmt::format("{}: cannot write image: {}", path, reason));
+  }
+  output.reset();
+  commit_temporary(temporary, destination);
+}
+
+Image read_image(const std::string& path) {
+  auto input = OIIO::ImageInput::open(path);
+  if (!input) throw InputError(path, "", fmt::format("cannot read image ({})", OIIO::geterror()));
+  const OIIO::ImageSpec& spec = input->spec();
+  const int channels = spec.nchannels;
+  std::vector<float> data(static_cast<std::size_t>(spec.width) * spec.height * channels);
+  if (!input->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, data.data()))
+    throw InputError(path, "", fmt::format("cannot read image ({})", input->geterror()));
+  Image image(spec.width, spec.height);
+  for (std::size_t i = 0; i < image.pixels.size(); ++i)
+    for (int c = 0; c < 3; ++c) image.pixels[i][c] = data[i * channels + std::min(c, channels - 1)];
+  return image;
+}
+
+}  // namespace rt

@@ -1,0 +1,99 @@
+#include "rt/render/shade.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace rt {
+
+namespace {
+
+// Fixed offset for secondary-ray origins, relative to the magnitude of the hit point's
+// coordinates: float32 positions carry a rounding error of about 6e-8 |p|, and the float32
+// intersection adds a few ulps more, so 1e-4 (1 + max|p_i|) clears both by orders of magnitude
+// for scenes of ordinary size while staying invisible (sub-pixel) in them. It is not a bound;
+// the numerics work replaces it with one derived from the floating-point error of the hit.
+constexpr double kRayOffset = 1e-4;
+
+double max_abs_component(const Vec3d& p) { return std::max({std::abs(p.x), std::abs(p.y), std::abs(p.z)}); }
+
+}  // namespace
+
+RayCounts& RayCounts::operator+=(const RayCounts& other) {
+  camera += other.camera;
+  shadow += other.shadow;
+  reflection += other.reflection;
+  return *this;
+}
+
+Vec3f offset_ray_origin(const Vec3d& point, const Vec3d& geometric_normal, const Vec3d& direction) {
+  const double offset = kRayOffset * (1.0 + max_abs_component(point));
+  const double side = glm::dot(geometric_normal, direction) >= 0.0 ? 1.0 : -1.0;
+  return Vec3f(point + side * offset * geometric_normal);
+}
+
+Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCounts& counts) {
+  const Hit hit = context.accel.intersect(ray);
+  if (!hit.found()) return context.scene.settings.background;
+
+  // Surface at the hit, world space, double. The point is interpolated from the triangle's
+  // vertices rather than taken as o + t d: it then lies on the triangle up to rounding,
+  // whatever error t carries.
+  const FlatScene& flat = context.flat;
+  const Vec3u tri = flat.triangles[hit.triangle];
+  const Vec3d p0(flat.positions[tri.x]), p1(flat.positions[tri.y]), p2(flat.positions[tri.z]);
+  const double b1 = hit.u, b2 = hit.v, b0 = 1.0 - b1 - b2;
+  const Vec3d point = b0 * p0 + b1 * p1 + b2 * p2;
+  const Vec3d geometric_normal = glm::normalize(glm::cross(p1 - p0, p2 - p0));
+  const Vec3d normal = glm::normalize(b0 * Vec3d(flat.normals[tri.x]) + b1 * Vec3d(flat.normals[tri.y]) +
+                                      b2 * Vec3d(flat.normals[tri.z]));
+  const Vec3d direction = glm::normalize(Vec3d(ray.direction));
+  const Vec3d to_eye = -direction;
+  const Material& material = context.scene.materials[flat.material_ids[hit.triangle]];
+  const Vec3d ambient(material.ambient), diffuse(material.diffuse), specular(material.specular);
+
+  Vec3d radiance(material.emission);
+  for (const Light& light : context.scene.lights) {
+    Vec3d to_light;
+    double light_distance;  // world units from the shadow ray's origin; infinite for directional
+    Vec3d intensity(light.color);
+    Ray shadow_ray;
+    if (light.is_directional()) {
+      to_light = glm::normalize(Vec3d(light.position));
+      shadow_ray.origin = offset_ray_origin(point, geometric_normal, to_light);
+      light_distance = kInfinity;
+    } else {
+      const Vec3d light_position(light.position);
+      const double d = glm::length(light_position - point);
+      to_light = (light_position - point) / d;
+      intensity /= light.attenuation.x + light.attenuation.y * d + light.attenuation.z * d * d;
+      shadow_ray.origin = offset_ray_origin(point, geometric_normal, to_light);
+      // Stop short of the light by the same offset, so a surface the light sits on is no occluder.
+      const Vec3d origin(shadow_ray.origin);
+      light_distance = glm::length(light_position - origin) - kRayOffset * (1.0 + max_abs_component(light_position));
+    }
+    // A point light closer to the surface than the offset cannot be occluded; no ray is needed.
+    if (light_distance > 0.0) {
+      shadow_ray.direction = Vec3f(to_light);
+      shadow_ray.tfar = static_cast<float>(light_distance);
+      ++counts.shadow;
+      if (context.accel.occluded(shadow_ray)) continue;
+    }
+
+    const Vec3d half = glm::normalize(to_light + to_eye);
+    const double n_dot_l = std::max(glm::dot(normal, to_light), 0.0);
+    const double n_dot_h = std::max(glm::dot(normal, half), 0.0);
+    radiance += intensity * (ambient + diffuse * n_dot_l + specular * std::pow(n_dot_h, double(material.shininess)));
+  }
+
+  if (depth < context.scene.settings.max_depth) {
+    const Vec3d reflected = direction - 2.0 * glm::dot(direction, normal) * normal;
+    Ray reflection_ray;
+    reflection_ray.origin = offset_ray_origin(point, geometric_normal, reflected);
+    reflection_ray.direction = Vec3f(reflected);
+    ++counts.reflection;
+    radiance += specular * Vec3d(find_color(context, reflection_ray, depth + 1, counts));
+  }
+  return Color(radiance);
+}
+
+}  // namespace rt

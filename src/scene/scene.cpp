@@ -1,0 +1,87 @@
+#include "rt/scene/scene.h"
+
+#include <cmath>
+#include <string>
+
+#include <fmt/format.h>
+
+#include "rt/core/error.h"
+
+namespace rt {
+
+namespace {
+
+bool finite(const Color& c) { return std::isfinite(c.r) && std::isfinite(c.g) && std::isfinite(c.b); }
+bool finite(const Vec3d& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+
+void check_color(const Scene& scene, const std::string& where, const Color& c) {
+  if (!finite(c)) throw InputError(scene.source, where, "colour is not finite");
+  if (c.r < 0.0f || c.g < 0.0f || c.b < 0.0f) throw InputError(scene.source, where, "colour is negative");
+}
+
+}  // namespace
+
+void validate_camera(const Camera& camera, const std::string& source) {
+  if (!finite(camera.eye) || !finite(camera.target) || !finite(camera.up) || !std::isfinite(camera.fovy_degrees))
+    throw InputError(source, "camera", "camera has a non-finite value");
+  if (!(camera.fovy_degrees > 0.0 && camera.fovy_degrees < 180.0))
+    throw InputError(source, "camera", fmt::format("fovy {} is outside (0, 180) degrees", camera.fovy_degrees));
+  const Vec3d view = camera.target - camera.eye;
+  if (!(glm::length(view) > 0.0)) throw InputError(source, "camera", "eye and target are the same point");
+  // Relative test: |up x view| tiny compared with |up| |view| means the frame's u is undefined.
+  const double sine = glm::length(glm::cross(camera.up, view)) / (glm::length(camera.up) * glm::length(view));
+  if (!(sine > 1e-9)) throw InputError(source, "camera", "up vector is zero or parallel to the view direction");
+}
+
+void validate_scene(const Scene& scene) {
+  validate_camera(scene.camera, scene.source);
+  const RenderSettings& s = scene.settings;
+  if (s.width <= 0 || s.height <= 0)
+    throw InputError(scene.source, "", fmt::format("image size {}x{} is not positive", s.width, s.height));
+  if (s.max_depth < 0) throw InputError(scene.source, "", fmt::format("max depth {} is negative", s.max_depth));
+  check_color(scene, "background", s.background);
+
+  for (std::size_t i = 0; i < scene.materials.size(); ++i) {
+    const Material& m = scene.materials[i];
+    const std::string where = fmt::format("material '{}'", m.name);
+    check_color(scene, where, m.ambient);
+    check_color(scene, where, m.diffuse);
+    check_color(scene, where, m.specular);
+    check_color(scene, where, m.emission);
+    if (!std::isfinite(m.shininess) || m.shininess < 0.0f)
+      throw InputError(scene.source, where, "shininess must be finite and >= 0");
+  }
+  for (std::size_t i = 0; i < scene.lights.size(); ++i) {
+    const Light& l = scene.lights[i];
+    const std::string where = fmt::format("light {}", i);
+    check_color(scene, where, l.color);
+    if (!finite(Vec3d(l.position)) || !(l.position.w == 0.0 || l.position.w == 1.0))
+      throw InputError(scene.source, where, "position must be finite with w = 0 (directional) or 1 (point)");
+    if (l.is_directional() && Vec3d(l.position) == Vec3d(0.0))
+      throw InputError(scene.source, where, "directional light has a zero direction");
+    if (!finite(l.attenuation) || l.attenuation.x < 0 || l.attenuation.y < 0 || l.attenuation.z < 0 ||
+        l.attenuation == Vec3d(0.0))
+      throw InputError(scene.source, where, "attenuation must be finite, >= 0 and not all zero");
+  }
+  if (scene.nodes.empty()) throw InputError(scene.source, "", "scene has no root node");
+  if (scene.root >= scene.nodes.size()) throw InputError(scene.source, "", "root node index out of range");
+  for (std::size_t i = 0; i < scene.nodes.size(); ++i) {
+    const Node& node = scene.nodes[i];
+    const std::string where = fmt::format("node '{}'", node.name.empty() ? std::to_string(i) : node.name);
+    for (std::uint32_t child : node.children)
+      if (child >= scene.nodes.size()) throw InputError(scene.source, where, "child index out of range");
+    for (const Model& model : node.models) {
+      if (!model.mesh) throw InputError(scene.source, where, "model has no geometry");
+      if (model.material >= scene.materials.size())
+        throw InputError(scene.source, where, "model material index out of range");
+      const TriangleMesh& mesh = *model.mesh;
+      if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size())
+        throw InputError(scene.source, where, "mesh has a different number of normals and positions");
+      for (const Vec3u& t : mesh.triangles)
+        if (t.x >= mesh.positions.size() || t.y >= mesh.positions.size() || t.z >= mesh.positions.size())
+          throw InputError(scene.source, where, "triangle index out of range");
+    }
+  }
+}
+
+}  // namespace rt
