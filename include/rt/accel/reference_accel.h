@@ -30,7 +30,7 @@ class ReferenceAccel final : public Accel {
 
  private:
   struct TriangleD {
-    Vec3d p1, p2, p3;
+    Vec3d p1, e1, e2;  // first vertex and the edges to the other two
   };
   std::vector<TriangleD> triangles_;
 };
