@@ -63,7 +63,7 @@ int run_render(const RenderArgs& args) {
   if (args.max_depth) scene.settings.max_depth = *args.max_depth;
   validate_scene(scene);
   const std::string output = args.output.empty() ? default_output(scene, args.scene_path) : args.output;
-  require_writable_format(output);  // fail before rendering, not after
+  check_output_path(output);  // fail before rendering, not after
   const double load_s = seconds_since(start);
 
   auto phase_start = Clock::now();
@@ -164,15 +164,15 @@ int run_cli(int argc, char** argv) {
   render->add_option("-o,--output", render_args.output,
                      "Output image; format by extension (png, jpg, exr, hdr, tif, ...). "
                      "Default: the scene's \"output\", else <scene name>.png");
-  render->add_option("--width", render_args.width, "Image width in pixels")->check(CLI::PositiveNumber);
-  render->add_option("--height", render_args.height, "Image height in pixels")->check(CLI::PositiveNumber);
+  render->add_option("--width", render_args.width, "Image width in pixels")->check(CLI::Range(1, kMaxImageSide));
+  render->add_option("--height", render_args.height, "Image height in pixels")->check(CLI::Range(1, kMaxImageSide));
   render->add_option("--max-depth", render_args.max_depth, "Reflection depth (0 = no reflections)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::Range(0, kMaxReflectionDepth));
   render->add_option("--accel", render_args.accel, "Intersector: embree (fast) or reference (double, brute force)")
       ->check(CLI::IsMember({"embree", "reference"}))
       ->capture_default_str();
   render->add_option("--threads", render_args.threads, "Worker threads (0 = all cores)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(CLI::Range(0, 1024))
       ->capture_default_str();
   render->add_option("--stats", render_args.stats_path, "Write ray counts and phase timings as JSON to this file");
   render->add_flag("-q,--quiet", render_args.quiet, "No progress bar and no summary line");

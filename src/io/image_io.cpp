@@ -1,5 +1,7 @@
 #include "rt/io/image_io.h"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -58,7 +60,13 @@ std::unique_ptr<OIIO::ImageOutput> create_output(const std::string& path) {
 
 }  // namespace
 
-void require_writable_format(const std::string& path) { create_output(path); }
+void check_output_path(const std::string& path) {
+  create_output(path);
+  const fs::path directory = fs::path(path).parent_path().empty() ? fs::path(".") : fs::path(path).parent_path();
+  std::error_code error;
+  if (!fs::is_directory(directory, error)) throw InputError(path, "", "output directory does not exist");
+  if (access(directory.c_str(), W_OK) != 0) throw InputError(path, "", "output directory is not writable");
+}
 
 void write_image(const Image& image, const std::string& path) {
   auto output = create_output(path);

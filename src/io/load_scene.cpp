@@ -43,7 +43,7 @@ class SceneReader {
   const json& require_object(const json& value, const std::string& where) const;
   const json& require_array(const json& value, const std::string& where) const;
   double read_number(const json& value, const std::string& where) const;
-  int read_int(const json& value, const std::string& where, int min_value) const;
+  int read_int(const json& value, const std::string& where, int min_value, int max_value = 1'000'000'000) const;
   std::string read_string(const json& value, const std::string& where) const;
   Vec3d read_vec3(const json& value, const std::string& where) const;
   Color read_color(const json& value, const std::string& where) const;
@@ -105,10 +105,11 @@ double SceneReader::read_number(const json& value, const std::string& where) con
   return number;
 }
 
-int SceneReader::read_int(const json& value, const std::string& where, int min_value) const {
+int SceneReader::read_int(const json& value, const std::string& where, int min_value, int max_value) const {
   const double number = read_number(value, where);
-  if (number != std::floor(number) || std::abs(number) > 1e9) fail(where, fmt::format("{} is not an integer", number));
-  if (number < min_value) fail(where, fmt::format("{} is less than {}", number, min_value));
+  if (number != std::floor(number)) fail(where, fmt::format("{} is not an integer", number));
+  if (number < min_value || number > max_value)
+    fail(where, fmt::format("{} is outside {}..{}", number, min_value, max_value));
   return static_cast<int>(number);
 }
 
@@ -134,10 +135,10 @@ void SceneReader::read_settings(const json& document, Scene& scene) const {
   if (document.contains("image")) {
     const json& image = require_object(document["image"], "/image");
     check_keys(image, "/image", {"width", "height"});
-    if (image.contains("width")) settings.width = read_int(image["width"], "/image/width", 1);
-    if (image.contains("height")) settings.height = read_int(image["height"], "/image/height", 1);
+    if (image.contains("width")) settings.width = read_int(image["width"], "/image/width", 1, kMaxImageSide);
+    if (image.contains("height")) settings.height = read_int(image["height"], "/image/height", 1, kMaxImageSide);
   }
-  if (document.contains("max_depth")) settings.max_depth = read_int(document["max_depth"], "/max_depth", 0);
+  if (document.contains("max_depth")) settings.max_depth = read_int(document["max_depth"], "/max_depth", 0, kMaxReflectionDepth);
   if (document.contains("background")) settings.background = read_color(document["background"], "/background");
   if (document.contains("output")) settings.output = read_string(document["output"], "/output");
 }
@@ -152,13 +153,7 @@ Camera SceneReader::read_camera(const json& value, const std::string& where) con
   camera.target = read_vec3(value["target"], child(where, "target"));
   if (value.contains("up")) camera.up = read_vec3(value["up"], child(where, "up"));
   camera.fovy_degrees = read_number(value["fovy"], child(where, "fovy"));
-  try {
-    validate_camera(camera, path_);
-  } catch (const InputError& error) {
-    // Re-anchor the message at the JSON path of the camera.
-    const std::string message = error.what();
-    fail(where, message.substr(message.rfind(": ") + 2));
-  }
+  if (auto problem = find_camera_problem(camera)) fail(child(where, problem->field), problem->reason);
   return camera;
 }
 
@@ -225,9 +220,9 @@ std::shared_ptr<const TriangleMesh> SceneReader::read_geometry(const json& value
     check_keys(value, where, {"type", "center", "radius", "slices", "stacks"});
     const double radius = value.contains("radius") ? read_number(value["radius"], child(where, "radius")) : 1.0;
     if (!(radius > 0)) fail(child(where, "radius"), "radius must be > 0");
-    const int slices = value.contains("slices") ? read_int(value["slices"], child(where, "slices"), 3)
+    const int slices = value.contains("slices") ? read_int(value["slices"], child(where, "slices"), 3, 4096)
                                                 : kDefaultSphereSlices;
-    const int stacks = value.contains("stacks") ? read_int(value["stacks"], child(where, "stacks"), 2)
+    const int stacks = value.contains("stacks") ? read_int(value["stacks"], child(where, "stacks"), 2, 2048)
                                                 : kDefaultSphereStacks;
     TriangleMesh mesh = make_sphere_mesh(radius, slices, stacks);
     if (value.contains("center")) {
@@ -406,6 +401,20 @@ std::string read_text_file(const std::string& path) {
   return text.str();
 }
 
+// "line:column" (1-based) of the 1-based byte offset `byte` in `text`.
+std::string line_column(const std::string& text, std::size_t byte) {
+  std::size_t line = 1, column = 1;
+  for (std::size_t i = 0; i + 1 < byte && i < text.size(); ++i) {
+    if (text[i] == '\n') {
+      ++line;
+      column = 1;
+    } else {
+      ++column;
+    }
+  }
+  return fmt::format("{}:{}", line, column);
+}
+
 }  // namespace
 
 Scene parse_scene_json(const std::string& text, const std::string& path) {
@@ -414,19 +423,19 @@ Scene parse_scene_json(const std::string& text, const std::string& path) {
     document = json::parse(text, nullptr, /*allow_exceptions=*/true, /*ignore_comments=*/true);
   } catch (const json::parse_error& error) {
     // Report line:column of the byte where parsing stopped; keep only nlohmann's reason text.
-    std::size_t line = 1, column = 1;
-    for (std::size_t i = 0; i + 1 < error.byte && i < text.size(); ++i) {
-      if (text[i] == '\n') {
-        ++line;
-        column = 1;
-      } else {
-        ++column;
-      }
-    }
     std::string reason = error.what();
     const std::size_t colon = reason.find(": ", reason.find("parse error"));
     if (colon != std::string::npos) reason = reason.substr(colon + 2);
-    throw InputError(path, fmt::format("{}:{}", line, column), "JSON syntax error: " + reason);
+    throw InputError(path, line_column(text, error.byte), "JSON syntax error: " + reason);
+  } catch (const json::out_of_range& error) {
+    // nlohmann refuses numbers beyond double's range ("number overflow parsing '1e999'") without
+    // a position; find the literal in the text to give one.
+    std::string reason = error.what();
+    const std::size_t open = reason.find('\''), close = reason.rfind('\'');
+    const std::string literal = open < close ? reason.substr(open + 1, close - open - 1) : "";
+    const std::size_t at = literal.empty() ? std::string::npos : text.find(literal);
+    throw InputError(path, at == std::string::npos ? "" : line_column(text, at + 1),
+                     fmt::format("number {} is out of range (not a finite double)", literal));
   }
   Scene scene = SceneReader(path).read(document);
   validate_scene(scene);

@@ -21,24 +21,33 @@ void check_color(const Scene& scene, const std::string& where, const Color& c) {
 
 }  // namespace
 
-void validate_camera(const Camera& camera, const std::string& source) {
-  if (!finite(camera.eye) || !finite(camera.target) || !finite(camera.up) || !std::isfinite(camera.fovy_degrees))
-    throw InputError(source, "camera", "camera has a non-finite value");
+std::optional<CameraProblem> find_camera_problem(const Camera& camera) {
+  if (!finite(camera.eye)) return CameraProblem{"eye", "eye is not finite"};
+  if (!finite(camera.target)) return CameraProblem{"target", "target is not finite"};
+  if (!finite(camera.up)) return CameraProblem{"up", "up is not finite"};
   if (!(camera.fovy_degrees > 0.0 && camera.fovy_degrees < 180.0))
-    throw InputError(source, "camera", fmt::format("fovy {} is outside (0, 180) degrees", camera.fovy_degrees));
+    return CameraProblem{"fovy", fmt::format("fovy {} is outside (0, 180) degrees", camera.fovy_degrees)};
   const Vec3d view = camera.target - camera.eye;
-  if (!(glm::length(view) > 0.0)) throw InputError(source, "camera", "eye and target are the same point");
-  // Relative test: |up x view| tiny compared with |up| |view| means the frame's u is undefined.
+  if (!(glm::length(view) > 0.0)) return CameraProblem{"target", "target is the same point as eye"};
+  // Relative test: |up x view| tiny compared with |up| |view| leaves the frame's u undefined.
   const double sine = glm::length(glm::cross(camera.up, view)) / (glm::length(camera.up) * glm::length(view));
-  if (!(sine > 1e-9)) throw InputError(source, "camera", "up vector is zero or parallel to the view direction");
+  if (!(sine > 1e-9)) return CameraProblem{"up", "up vector is zero or parallel to the view direction"};
+  return std::nullopt;
+}
+
+void validate_camera(const Camera& camera, const std::string& source) {
+  if (auto problem = find_camera_problem(camera)) throw InputError(source, "camera." + problem->field, problem->reason);
 }
 
 void validate_scene(const Scene& scene) {
   validate_camera(scene.camera, scene.source);
   const RenderSettings& s = scene.settings;
-  if (s.width <= 0 || s.height <= 0)
-    throw InputError(scene.source, "", fmt::format("image size {}x{} is not positive", s.width, s.height));
-  if (s.max_depth < 0) throw InputError(scene.source, "", fmt::format("max depth {} is negative", s.max_depth));
+  if (s.width <= 0 || s.height <= 0 || s.width > kMaxImageSide || s.height > kMaxImageSide)
+    throw InputError(scene.source, "image",
+                     fmt::format("image size {}x{} is outside 1..{} per side", s.width, s.height, kMaxImageSide));
+  if (s.max_depth < 0 || s.max_depth > kMaxReflectionDepth)
+    throw InputError(scene.source, "max_depth",
+                     fmt::format("max depth {} is outside 0..{}", s.max_depth, kMaxReflectionDepth));
   check_color(scene, "background", s.background);
 
   for (std::size_t i = 0; i < scene.materials.size(); ++i) {

@@ -19,9 +19,9 @@ std::vector<std::uint8_t> to_rgb8(const Image& image);
 // True for extensions written as linear float (.exr, .hdr, .pfm); everything else is 8-bit.
 bool writes_float(const std::string& path);
 
-// Throws InputError unless OpenImageIO can write the format named by `path`'s extension.
-// Lets callers refuse a bad output name before spending time on a render.
-void require_writable_format(const std::string& path);
+// Throws InputError unless OpenImageIO can write the format named by `path`'s extension and the
+// directory `path` names exists and is writable. Lets callers refuse a bad output before rendering.
+void check_output_path(const std::string& path);
 
 // Writes `image` to `path` (png, jpg, exr, hdr, tif, bmp, ppm, pfm and any other OIIO format).
 // The file is written next to the destination under a temporary name and renamed into place,

@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -68,6 +69,11 @@ struct Node {
   std::vector<Model> models;
 };
 
+// Upper limits validate_scene enforces: image sides (keeps pixel counts within 32-bit tile
+// arithmetic) and reflection depth (find_color recurses once per level on the thread's stack).
+inline constexpr int kMaxImageSide = 1 << 16;
+inline constexpr int kMaxReflectionDepth = 1000;
+
 // Image and integrator settings carried by a scene file; CLI flags may override them.
 struct RenderSettings {
   int width = 640;
@@ -91,8 +97,17 @@ struct Scene {
 // values, sensible sizes, a valid camera). Throws InputError naming scene.source and the offence.
 void validate_scene(const Scene& scene);
 
-// Throws InputError (naming `source`) unless the camera is usable: finite values, eye != target,
-// up not parallel to the view direction, fovy in (0, 180) degrees.
+// What is wrong with a camera: the offending field ("eye", "target", "up" or "fovy") and why.
+struct CameraProblem {
+  std::string field;
+  std::string reason;
+};
+
+// The first problem that makes the camera unusable (non-finite values, eye == target, up zero or
+// parallel to the view direction, fovy outside (0, 180) degrees), or nullopt if there is none.
+std::optional<CameraProblem> find_camera_problem(const Camera& camera);
+
+// Throws InputError naming `source`, "camera.<field>" and the reason if find_camera_problem finds one.
 void validate_camera(const Camera& camera, const std::string& source);
 
 }  // namespace rt
