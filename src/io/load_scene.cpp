@@ -18,7 +18,7 @@
 namespace rt {
 
 namespace fs = std::filesystem;
-using json = nlohmann::json;
+using json = nlohmann::ordered_json;  // keeps file order: materials and nodes are numbered as written
 
 namespace {
 
