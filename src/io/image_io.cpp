@@ -42,7 +42,7 @@ std::vector<std::uint8_t> to_rgb8(const Image& image) {
 
 bool writes_float(const std::string& path) {
   const std::string ext = lower_extension(path);
-  return ext == ".exr" || ext == ".hdr" || ext == ".pfm";
+  return ext == ".exr" || ext == ".hdr";
 }
 
 namespace {

@@ -16,14 +16,14 @@ std::uint8_t quantize_8bit(float c);
 // The image as interleaved 8-bit RGB, rows top to bottom, quantised by quantize_8bit.
 std::vector<std::uint8_t> to_rgb8(const Image& image);
 
-// True for extensions written as linear float (.exr, .hdr, .pfm); everything else is 8-bit.
+// True for extensions written as linear float (.exr, .hdr); everything else is 8-bit.
 bool writes_float(const std::string& path);
 
 // Throws InputError unless OpenImageIO can write the format named by `path`'s extension and the
 // directory `path` names exists and is writable. Lets callers refuse a bad output before rendering.
 void check_output_path(const std::string& path);
 
-// Writes `image` to `path` (png, jpg, exr, hdr, tif, bmp, ppm, pfm and any other OIIO format).
+// Writes `image` to `path` (png, jpg, exr, hdr, tif, bmp, ppm and any other format OIIO writes).
 // The file is written next to the destination under a temporary name and renamed into place,
 // so a failed write never leaves a partial file and never touches an existing one.
 // Throws InputError for an unknown extension, RuntimeError for I/O failures.
