@@ -1,0 +1,236 @@
+// Both intersectors against intersections solved by hand.
+
+#include <catch2/catch.hpp>
+
+#include <array>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <vector>
+
+#include "rt/accel/accel.h"
+#include "rt/accel/reference_accel.h"
+#include "rt/core/error.h"
+#include "rt/flatten/flatten.h"
+#include "test_util.h"
+
+namespace {
+
+using rt::Vec3d;
+using rt::Vec3f;
+
+// A FlatScene over the given triangles, built the way the renderer builds it (via flatten_scene,
+// so the spare capacity Embree needs is there).
+rt::FlatScene flat_triangles(const std::vector<std::array<Vec3f, 3>>& corners) {
+  rt::Scene scene = rt_test::make_scene({{rt_test::make_flat_mesh(corners), 0}});
+  scene.materials.resize(1);
+  return rt::flatten_scene(scene);
+}
+
+rt::Ray make_ray(Vec3f origin, Vec3f direction, float tnear = 0.0f, float tfar = rt::kInfinity) {
+  rt::Ray ray;
+  ray.origin = origin;
+  ray.direction = direction;
+  ray.tnear = tnear;
+  ray.tfar = tfar;
+  return ray;
+}
+
+const std::array<Vec3f, 3> kUnitTriangle{Vec3f(0, 0, 0), Vec3f(1, 0, 0), Vec3f(0, 1, 0)};
+
+}  // namespace
+
+TEST_CASE("intersectors hit a triangle at the hand-computed t, u, v", "[accel]") {
+  const rt::AccelKind kind = GENERATE(rt::AccelKind::embree, rt::AccelKind::reference);
+  INFO("accel " << rt::to_string(kind));
+  const rt::FlatScene flat = flat_triangles({kUnitTriangle});
+  const std::unique_ptr<rt::Accel> accel = rt::build_accel(kind, flat);
+  CHECK(accel->name() == rt::to_string(kind));
+
+  SECTION("straight down onto (0.25, 0.25, 0)") {
+    // Point = (1 - u - v) p0 + u p1 + v p2 = (u, v, 0): u = v = 0.25, t = 1.
+    const rt::Hit hit = accel->intersect(make_ray({0.25f, 0.25f, 1.0f}, {0.0f, 0.0f, -1.0f}));
+    REQUIRE(hit.found());
+    CHECK(hit.triangle == 0);
+    CHECK(hit.t == Approx(1.0f).epsilon(1e-6));
+    CHECK(hit.u == Approx(0.25f).epsilon(1e-6));
+    CHECK(hit.v == Approx(0.25f).epsilon(1e-6));
+    CHECK(accel->occluded(make_ray({0.25f, 0.25f, 1.0f}, {0.0f, 0.0f, -1.0f})));
+  }
+  SECTION("t is measured in multiples of a non-unit direction") {
+    const rt::Hit hit = accel->intersect(make_ray({0.1f, 0.6f, 1.0f}, {0.0f, 0.0f, -4.0f}));
+    REQUIRE(hit.found());
+    CHECK(hit.t == Approx(0.25f).epsilon(1e-6));
+    CHECK(hit.u == Approx(0.1f).epsilon(1e-6));
+    CHECK(hit.v == Approx(0.6f).epsilon(1e-6));
+  }
+  SECTION("oblique ray from below (no back-face culling)") {
+    // From (0.5, 0, -1) along (-0.25, 0.5, 1): reaches z = 0 at t = 1, point (0.25, 0.5, 0).
+    const rt::Hit hit = accel->intersect(make_ray({0.5f, 0.0f, -1.0f}, {-0.25f, 0.5f, 1.0f}));
+    REQUIRE(hit.found());
+    CHECK(hit.t == Approx(1.0f).epsilon(1e-6));
+    CHECK(hit.u == Approx(0.25f).epsilon(1e-6));
+    CHECK(hit.v == Approx(0.5f).epsilon(1e-6));
+  }
+  SECTION("misses outside the triangle and behind the origin") {
+    for (const rt::Ray& ray : {make_ray({0.75f, 0.75f, 1.0f}, {0, 0, -1}),   // u + v > 1
+                               make_ray({-0.1f, 0.2f, 1.0f}, {0, 0, -1}),    // u < 0
+                               make_ray({0.2f, -0.1f, 1.0f}, {0, 0, -1}),    // v < 0
+                               make_ray({0.25f, 0.25f, 1.0f}, {0, 0, 1}),    // triangle behind
+                               make_ray({0.25f, 0.25f, 1.0f}, {1, 0, 0})}) {  // parallel, above
+      const rt::Hit hit = accel->intersect(ray);
+      CHECK_FALSE(hit.found());
+      CHECK(hit.triangle == rt::kNoTriangle);
+      CHECK(hit.t == rt::kInfinity);
+      CHECK_FALSE(accel->occluded(ray));
+    }
+  }
+  SECTION("tnear and tfar limit the hit (t = 1)") {
+    const Vec3f origin(0.25f, 0.25f, 1.0f), down(0.0f, 0.0f, -1.0f);
+    CHECK(accel->intersect(make_ray(origin, down, 0.5f, 1.5f)).found());
+    CHECK_FALSE(accel->intersect(make_ray(origin, down, 1.5f, rt::kInfinity)).found());
+    CHECK_FALSE(accel->intersect(make_ray(origin, down, 0.0f, 0.5f)).found());
+    CHECK(accel->occluded(make_ray(origin, down, 0.5f, 1.5f)));
+    CHECK_FALSE(accel->occluded(make_ray(origin, down, 1.5f, rt::kInfinity)));
+    CHECK_FALSE(accel->occluded(make_ray(origin, down, 0.0f, 0.5f)));
+    CHECK(accel->occluded(make_ray(origin, down, 0.0f, 1.001f)));
+    CHECK(accel->occluded(make_ray(origin, down, 0.999f, rt::kInfinity)));
+  }
+}
+
+TEST_CASE("intersectors solve a general triangle", "[accel]") {
+  // Triangle (1,0,0), (0,2,0), (0,0,3) lies in the plane x + y/2 + z/3 = 1. The ray from the
+  // origin along (1,1,1) meets it at t (1 + 1/2 + 1/3) = 1, t = 6/11, point (6,6,6)/11
+  // = (6/11) p0 + (3/11) p1 + (2/11) p2: u = 3/11, v = 2/11.
+  const rt::AccelKind kind = GENERATE(rt::AccelKind::embree, rt::AccelKind::reference);
+  INFO("accel " << rt::to_string(kind));
+  const rt::FlatScene flat = flat_triangles({{Vec3f(1, 0, 0), Vec3f(0, 2, 0), Vec3f(0, 0, 3)}});
+  const std::unique_ptr<rt::Accel> accel = rt::build_accel(kind, flat);
+  const rt::Hit hit = accel->intersect(make_ray({0, 0, 0}, {1, 1, 1}));
+  REQUIRE(hit.found());
+  CHECK(hit.t == Approx(6.0 / 11.0).epsilon(1e-6));
+  CHECK(hit.u == Approx(3.0 / 11.0).epsilon(1e-6));
+  CHECK(hit.v == Approx(2.0 / 11.0).epsilon(1e-6));
+}
+
+TEST_CASE("intersectors return the closest of two stacked triangles", "[accel]") {
+  const rt::AccelKind kind = GENERATE(rt::AccelKind::embree, rt::AccelKind::reference);
+  INFO("accel " << rt::to_string(kind));
+  // Triangle 0 at z = -1 (larger), triangle 1 at z = 0: the nearer one has the higher index.
+  const rt::FlatScene flat = flat_triangles({{Vec3f(-1, -1, -1), Vec3f(3, -1, -1), Vec3f(-1, 3, -1)}, kUnitTriangle});
+  const std::unique_ptr<rt::Accel> accel = rt::build_accel(kind, flat);
+
+  const rt::Hit from_above = accel->intersect(make_ray({0.25f, 0.25f, 1.0f}, {0, 0, -1}));
+  REQUIRE(from_above.found());
+  CHECK(from_above.triangle == 1);
+  CHECK(from_above.t == Approx(1.0f).epsilon(1e-6));
+
+  const rt::Hit from_below = accel->intersect(make_ray({0.25f, 0.25f, -2.0f}, {0, 0, 1}));
+  REQUIRE(from_below.found());
+  CHECK(from_below.triangle == 0);
+  CHECK(from_below.t == Approx(1.0f).epsilon(1e-6));
+  // On triangle 0, (0.25, 0.25) - p0 = (1.25, 1.25) = u (4, 0) + v (0, 4): u = v = 1.25 / 4.
+  CHECK(from_below.u == Approx(0.3125f).epsilon(1e-6));
+  CHECK(from_below.v == Approx(0.3125f).epsilon(1e-6));
+
+  // Starting past the nearer one (tnear) finds the farther one at t = 2.
+  const rt::Hit skipped = accel->intersect(make_ray({0.25f, 0.25f, 1.0f}, {0, 0, -1}, 1.5f));
+  REQUIRE(skipped.found());
+  CHECK(skipped.triangle == 0);
+  CHECK(skipped.t == Approx(2.0f).epsilon(1e-6));
+
+  // Outside the small triangle only the large one is hit.
+  const rt::Hit outside = accel->intersect(make_ray({2.0f, -0.5f, 1.0f}, {0, 0, -1}));
+  REQUIRE(outside.found());
+  CHECK(outside.triangle == 0);
+  CHECK(outside.t == Approx(2.0f).epsilon(1e-6));
+}
+
+TEST_CASE("reference intersector breaks ties in t towards the lowest index", "[accel]") {
+  const rt::FlatScene flat = flat_triangles({kUnitTriangle, kUnitTriangle, kUnitTriangle});
+  const rt::ReferenceAccel reference(flat);
+  const rt::Hit hit = reference.intersect(make_ray({0.25f, 0.25f, 1.0f}, {0, 0, -1}));
+  REQUIRE(hit.found());
+  CHECK(hit.triangle == 0);
+  const std::unique_ptr<rt::Accel> embree = rt::build_accel(rt::AccelKind::embree, flat);
+  const rt::Hit embree_hit = embree->intersect(make_ray({0.25f, 0.25f, 1.0f}, {0, 0, -1}));
+  REQUIRE(embree_hit.found());
+  CHECK(embree_hit.triangle < 3);
+  CHECK(embree_hit.t == Approx(1.0f).epsilon(1e-6));
+}
+
+TEST_CASE("intersectors over an empty scene miss everything", "[accel]") {
+  const rt::AccelKind kind = GENERATE(rt::AccelKind::embree, rt::AccelKind::reference);
+  INFO("accel " << rt::to_string(kind));
+  rt::Scene scene = rt_test::make_scene({});  // a root node without models
+  const rt::FlatScene flat = rt::flatten_scene(scene);
+  REQUIRE(flat.triangle_count() == 0);
+  const std::unique_ptr<rt::Accel> accel = rt::build_accel(kind, flat);
+  for (const Vec3f& direction : {Vec3f(0, 0, -1), Vec3f(1, 2, 3), Vec3f(-1, 0, 0)}) {
+    const rt::Ray ray = make_ray({0, 0, 0}, direction);
+    CHECK_FALSE(accel->intersect(ray).found());
+    CHECK_FALSE(accel->occluded(ray));
+  }
+}
+
+TEST_CASE("accel kind names round-trip", "[accel]") {
+  CHECK(rt::parse_accel_kind("embree") == rt::AccelKind::embree);
+  CHECK(rt::parse_accel_kind("reference") == rt::AccelKind::reference);
+  CHECK(rt::to_string(rt::AccelKind::embree) == "embree");
+  CHECK(rt::to_string(rt::AccelKind::reference) == "reference");
+  CHECK_THROWS_AS(rt::parse_accel_kind("bogus"), rt::InputError);
+  CHECK_THROWS_AS(rt::parse_accel_kind(""), rt::InputError);
+}
+
+TEST_CASE("intersect_triangle_barycentric solves the seed's system", "[accel]") {
+  const Vec3d p1(0, 0, 0), p2(1, 0, 0), p3(0, 1, 0);
+  double t = -7.0, l2 = -7.0, l3 = -7.0;
+  const double inf = std::numeric_limits<double>::infinity();
+
+  SECTION("interior hit") {
+    REQUIRE(rt::intersect_triangle_barycentric({0.25, 0.25, 1.0}, {0, 0, -1}, 0.0, inf, p1, p2, p3, t, l2, l3));
+    CHECK(t == 1.0);
+    CHECK(l2 == 0.25);
+    CHECK(l3 == 0.25);
+  }
+  SECTION("general triangle, hand-solved (see the accel test above)") {
+    REQUIRE(rt::intersect_triangle_barycentric({0, 0, 0}, {1, 1, 1}, 0.0, inf, {1, 0, 0}, {0, 2, 0}, {0, 0, 3}, t,
+                                               l2, l3));
+    CHECK(t == Approx(6.0 / 11.0).epsilon(1e-14));
+    CHECK(l2 == Approx(3.0 / 11.0).epsilon(1e-14));
+    CHECK(l3 == Approx(2.0 / 11.0).epsilon(1e-14));
+  }
+  SECTION("edges and vertices are inside (all lambdas >= 0)") {
+    REQUIRE(rt::intersect_triangle_barycentric({0.5, 0.0, 1.0}, {0, 0, -1}, 0.0, inf, p1, p2, p3, t, l2, l3));
+    CHECK(l2 == 0.5);
+    CHECK(l3 == 0.0);
+    REQUIRE(rt::intersect_triangle_barycentric({0.0, 0.0, 1.0}, {0, 0, -1}, 0.0, inf, p1, p2, p3, t, l2, l3));
+    CHECK(l2 == 0.0);
+    CHECK(l3 == 0.0);
+    REQUIRE(rt::intersect_triangle_barycentric({0.5, 0.5, 1.0}, {0, 0, -1}, 0.0, inf, p1, p2, p3, t, l2, l3));
+    CHECK(l2 + l3 == 1.0);
+  }
+  SECTION("just outside an edge misses") {
+    CHECK_FALSE(rt::intersect_triangle_barycentric({0.5, -1e-12, 1.0}, {0, 0, -1}, 0.0, inf, p1, p2, p3, t, l2, l3));
+    CHECK_FALSE(rt::intersect_triangle_barycentric({0.5, 0.5 + 1e-12, 1.0}, {0, 0, -1}, 0.0, inf, p1, p2, p3, t, l2,
+                                                   l3));
+  }
+  SECTION("a ray parallel to the triangle never hits") {
+    CHECK_FALSE(rt::intersect_triangle_barycentric({0.25, 0.25, 1.0}, {1, 0, 0}, 0.0, inf, p1, p2, p3, t, l2, l3));
+    // Even inside the triangle's plane.
+    CHECK_FALSE(rt::intersect_triangle_barycentric({-1.0, 0.25, 0.0}, {1, 0, 0}, 0.0, inf, p1, p2, p3, t, l2, l3));
+  }
+  SECTION("a degenerate triangle never hits") {
+    // Collinear corners and a repeated corner: zero area, zero determinant.
+    CHECK_FALSE(rt::intersect_triangle_barycentric({0.5, 0.0, 1.0}, {0, 0, -1}, 0.0, inf, {0, 0, 0}, {1, 0, 0},
+                                                   {2, 0, 0}, t, l2, l3));
+    CHECK_FALSE(rt::intersect_triangle_barycentric({0.0, 0.0, 1.0}, {0, 0, -1}, 0.0, inf, {0, 0, 0}, {0, 0, 0},
+                                                   {0, 0, 0}, t, l2, l3));
+  }
+  SECTION("tnear and tfar bound t, inclusively") {
+    CHECK_FALSE(rt::intersect_triangle_barycentric({0.25, 0.25, 1.0}, {0, 0, -1}, 1.5, inf, p1, p2, p3, t, l2, l3));
+    CHECK_FALSE(rt::intersect_triangle_barycentric({0.25, 0.25, 1.0}, {0, 0, -1}, 0.0, 0.5, p1, p2, p3, t, l2, l3));
+    CHECK(rt::intersect_triangle_barycentric({0.25, 0.25, 1.0}, {0, 0, -1}, 1.0, 1.0, p1, p2, p3, t, l2, l3));
+    CHECK_FALSE(rt::intersect_triangle_barycentric({0.25, 0.25, 1.0}, {0, 0, 1}, 0.0, inf, p1, p2, p3, t, l2, l3));
+  }
+}

@@ -1,0 +1,81 @@
+#pragma once
+// Small helpers shared by the test files: hand-built scenes and a scratch directory.
+
+#include <stdlib.h>  // mkdtemp
+
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <system_error>
+#include <utility>
+#include <vector>
+
+#include "rt/scene/scene.h"
+
+namespace rt_test {
+
+// A mesh of the given triangles (each three corners, counter-clockwise), every vertex carrying
+// the triangle's geometric normal, so the mesh is flat-shaded and needs no normal computation.
+inline rt::TriangleMesh make_flat_mesh(const std::vector<std::array<rt::Vec3f, 3>>& corners) {
+  rt::TriangleMesh mesh;
+  for (const auto& c : corners) {
+    const auto base = static_cast<unsigned>(mesh.positions.size());
+    const rt::Vec3f n = glm::normalize(glm::cross(c[1] - c[0], c[2] - c[0]));
+    for (const rt::Vec3f& p : c) {
+      mesh.positions.push_back(p);
+      mesh.normals.push_back(n);
+    }
+    mesh.triangles.push_back({base, base + 1, base + 2});
+  }
+  return mesh;
+}
+
+// A scene whose root node (index 0, identity transform) holds one model per (mesh, material)
+// pair; the materials vector is left to the caller.
+inline rt::Scene make_scene(const std::vector<std::pair<rt::TriangleMesh, std::uint32_t>>& models) {
+  rt::Scene scene;
+  scene.source = "<test>";
+  rt::Node root;
+  root.name = "root";
+  for (const auto& [mesh, material] : models)
+    root.models.push_back({std::make_shared<const rt::TriangleMesh>(mesh), material});
+  scene.nodes.push_back(std::move(root));
+  return scene;
+}
+
+// A fresh, empty directory under the system temporary directory, removed with its contents
+// when the object goes out of scope.
+class TempDir {
+ public:
+  TempDir() {
+    std::string pattern = (std::filesystem::temp_directory_path() / "rt_tests_XXXXXX").string();
+    if (!mkdtemp(pattern.data())) throw std::runtime_error("mkdtemp failed");
+    path_ = pattern;
+  }
+  ~TempDir() {
+    std::error_code ignored;
+    std::filesystem::remove_all(path_, ignored);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+
+  const std::filesystem::path& path() const { return path_; }
+  std::string operator/(const std::string& name) const { return (path_ / name).string(); }
+
+  // Names of the directory's entries, sorted.
+  std::vector<std::string> entries() const {
+    std::vector<std::string> names;
+    for (const auto& entry : std::filesystem::directory_iterator(path_)) names.push_back(entry.path().filename());
+    std::sort(names.begin(), names.end());
+    return names;
+  }
+
+ private:
+  std::filesystem::path path_;
+};
+
+}  // namespace rt_test
