@@ -100,7 +100,7 @@ TEST_CASE("rendering is independent of thread count and tile size", "[render]") 
   CHECK(one.rays.reflection > 0);
 }
 
-TEST_CASE("render reports progress once per tile, ending at 1", "[render]") {
+TEST_CASE("render reports progress once per tile, reaching 1", "[render]") {
   rt::Scene scene = rt::make_default_scene();
   scene.settings.width = 50;
   scene.settings.height = 30;
