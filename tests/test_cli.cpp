@@ -191,11 +191,8 @@ TEST_CASE("rt render rejects bad input with exit 1 and one line naming the file"
   }
 }
 
-// BUG (src/app/cli.cpp, run_render): the image output is checked before rendering
-// (check_output_path) but the --stats path is not, so an unwritable stats path is only noticed
-// after the image has been written: exit 1 with the image left behind, unlike every other bad
-// output argument.
-TEST_CASE("rt render with an unwritable --stats path writes no image", "[cli][!mayfail]") {
+// Every output argument is checked before rendering, so a bad --stats path leaves no image behind.
+TEST_CASE("rt render with an unwritable --stats path writes no image", "[cli]") {
   rt_test::TempDir dir;
   const Run run = run_rt(dir, "render --width 32 --height 24 --stats missing/stats.json");
   INFO("stderr: " << run.err);

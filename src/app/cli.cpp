@@ -64,6 +64,7 @@ int run_render(const RenderArgs& args) {
   validate_scene(scene);
   const std::string output = args.output.empty() ? default_output(scene, args.scene_path) : args.output;
   check_output_path(output);  // fail before rendering, not after
+  if (!args.stats_path.empty()) check_parent_directory_writable(args.stats_path);
   const double load_s = seconds_since(start);
 
   auto phase_start = Clock::now();

@@ -30,6 +30,14 @@ void commit_temporary(const fs::path& temporary, const fs::path& destination) {
   }
 }
 
+void check_parent_directory_writable(const std::string& path) {
+  const fs::path parent = fs::path(path).parent_path();
+  const fs::path directory = parent.empty() ? fs::path(".") : parent;
+  std::error_code error;
+  if (!fs::is_directory(directory, error)) throw InputError(path, "", "output directory does not exist");
+  if (access(directory.c_str(), W_OK) != 0) throw InputError(path, "", "output directory is not writable");
+}
+
 void write_text_file_atomically(const std::string& path, const std::string& content) {
   const fs::path temporary = temporary_sibling(path);
   {

@@ -1,7 +1,5 @@
 #include "rt/io/image_io.h"
 
-#include <unistd.h>
-
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -62,10 +60,7 @@ std::unique_ptr<OIIO::ImageOutput> create_output(const std::string& path) {
 
 void check_output_path(const std::string& path) {
   create_output(path);
-  const fs::path directory = fs::path(path).parent_path().empty() ? fs::path(".") : fs::path(path).parent_path();
-  std::error_code error;
-  if (!fs::is_directory(directory, error)) throw InputError(path, "", "output directory does not exist");
-  if (access(directory.c_str(), W_OK) != 0) throw InputError(path, "", "output directory is not writable");
+  check_parent_directory_writable(path);
 }
 
 void write_image(const Image& image, const std::string& path) {

@@ -79,9 +79,12 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
       if (context.accel.occluded(shadow_ray)) continue;
     }
 
-    const Vec3d half = glm::normalize(to_light + to_eye);
+    // l + v vanishes when the light is exactly behind the surface point as seen from the eye;
+    // the half vector is then undefined and the highlight is taken as zero (n.h = 0), not NaN.
+    const Vec3d half_sum = to_light + to_eye;
+    const double half_length = glm::length(half_sum);
     const double n_dot_l = std::max(glm::dot(normal, to_light), 0.0);
-    const double n_dot_h = std::max(glm::dot(normal, half), 0.0);
+    const double n_dot_h = half_length > 0.0 ? std::max(glm::dot(normal, half_sum) / half_length, 0.0) : 0.0;
     radiance += intensity * (ambient + diffuse * n_dot_l + specular * std::pow(n_dot_h, double(material.shininess)));
   }
 

@@ -14,6 +14,10 @@ std::filesystem::path temporary_sibling(const std::filesystem::path& destination
 // `temporary` and throws RuntimeError; `destination` is then untouched.
 void commit_temporary(const std::filesystem::path& temporary, const std::filesystem::path& destination);
 
+// Throws InputError unless the directory that will hold `path` exists and is writable.
+// For refusing a bad output path before expensive work rather than after it.
+void check_parent_directory_writable(const std::string& path);
+
 // Writes `content` to `path` through a temporary sibling. Throws RuntimeError on failure.
 void write_text_file_atomically(const std::string& path, const std::string& content);
 
