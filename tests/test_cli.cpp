@@ -21,22 +21,13 @@ namespace fs = std::filesystem;
 
 namespace {
 
+using rt_test::read_file;
+using rt_test::write_file;
+
 struct Run {
   int status = -1;
   std::string out, err;
 };
-
-std::string read_file(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-void write_file(const fs::path& path, const std::string& content) {
-  std::ofstream out(path, std::ios::binary);
-  out << content;
-}
 
 std::string quoted(const std::string& s) { return "'" + s + "'"; }
 

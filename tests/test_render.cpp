@@ -25,6 +25,9 @@ namespace fs = std::filesystem;
 
 namespace {
 
+using rt_test::read_file;
+using rt_test::write_file;
+
 rt::RenderResult render(const rt::Scene& scene, rt::AccelKind kind, int threads, int tile_size = 16) {
   const rt::FlatScene flat = rt::flatten_scene(scene);
   const std::unique_ptr<rt::Accel> accel = rt::build_accel(kind, flat);
@@ -34,17 +37,6 @@ rt::RenderResult render(const rt::Scene& scene, rt::AccelKind kind, int threads,
   return rt::render_image(scene, flat, *accel, options);
 }
 
-std::string read_file(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-void write_file(const std::string& path, const std::string& content) {
-  std::ofstream out(path, std::ios::binary);
-  out << content;
-}
 
 }  // namespace
 

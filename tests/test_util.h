@@ -7,7 +7,9 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <fstream>
 #include <memory>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <system_error>
@@ -45,6 +47,19 @@ inline rt::Scene make_scene(const std::vector<std::pair<rt::TriangleMesh, std::u
     root.models.push_back({std::make_shared<const rt::TriangleMesh>(mesh), material});
   scene.nodes.push_back(std::move(root));
   return scene;
+}
+
+// Whole file contents as bytes ("" if it cannot be read).
+inline std::string read_file(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+inline void write_file(const std::filesystem::path& path, const std::string& content) {
+  std::ofstream out(path, std::ios::binary);
+  out << content;
 }
 
 // A fresh, empty directory under the system temporary directory, removed with its contents

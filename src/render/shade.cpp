@@ -54,23 +54,24 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
   Vec3d radiance(material.emission);
   for (const Light& light : context.scene.lights) {
     Vec3d to_light;
-    double light_distance;  // world units from the shadow ray's origin; infinite for directional
     Vec3d intensity(light.color);
-    Ray shadow_ray;
     if (light.is_directional()) {
       to_light = glm::normalize(Vec3d(light.position));
-      shadow_ray.origin = offset_ray_origin(point, geometric_normal, to_light);
-      light_distance = kInfinity;
     } else {
-      const Vec3d light_position(light.position);
-      const double d = glm::length(light_position - point);
-      to_light = (light_position - point) / d;
+      const Vec3d offset = Vec3d(light.position) - point;
+      const double d = glm::length(offset);
+      if (!(d > 0.0)) continue;  // a light exactly at the point has no direction
+      to_light = offset / d;
       intensity /= light.attenuation.x + light.attenuation.y * d + light.attenuation.z * d * d;
-      shadow_ray.origin = offset_ray_origin(point, geometric_normal, to_light);
-      // Stop short of the light by the same offset, so a surface the light sits on is no occluder.
-      const Vec3d origin(shadow_ray.origin);
-      light_distance = glm::length(light_position - origin) - kRayOffset * (1.0 + max_abs_component(light_position));
     }
+    Ray shadow_ray;
+    shadow_ray.origin = offset_ray_origin(point, geometric_normal, to_light);
+    // World units from the shadow ray's origin to the light (infinite for directional), stopping
+    // short of a point light by the same offset, so a surface the light sits on is no occluder.
+    const double light_distance =
+        light.is_directional() ? double(kInfinity)
+                               : glm::length(Vec3d(light.position) - Vec3d(shadow_ray.origin)) -
+                                     kRayOffset * (1.0 + max_abs_component(Vec3d(light.position)));
     // A point light closer to the surface than the offset cannot be occluded; no ray is needed.
     if (light_distance > 0.0) {
       shadow_ray.direction = Vec3f(to_light);
