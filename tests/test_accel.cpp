@@ -2,6 +2,8 @@
 
 #include <catch2/catch.hpp>
 
+#include <tuple>
+
 #include <array>
 #include <cmath>
 #include <limits>
@@ -41,7 +43,8 @@ const std::array<Vec3f, 3> kUnitTriangle{Vec3f(0, 0, 0), Vec3f(1, 0, 0), Vec3f(0
 }  // namespace
 
 TEST_CASE("intersectors hit a triangle at the hand-computed t, u, v", "[accel]") {
-  const rt::AccelKind kind = GENERATE(rt::AccelKind::embree, rt::AccelKind::reference);
+  const rt::AccelKind kind =
+      GENERATE(rt::AccelKind::embree, rt::AccelKind::reference, rt::AccelKind::reference_barycentric);
   INFO("accel " << rt::to_string(kind));
   const rt::FlatScene flat = flat_triangles({kUnitTriangle});
   const std::unique_ptr<rt::Accel> accel = rt::build_accel(kind, flat);
@@ -102,7 +105,8 @@ TEST_CASE("intersectors solve a general triangle", "[accel]") {
   // Triangle (1,0,0), (0,2,0), (0,0,3) lies in the plane x + y/2 + z/3 = 1. The ray from the
   // origin along (1,1,1) meets it at t (1 + 1/2 + 1/3) = 1, t = 6/11, point (6,6,6)/11
   // = (6/11) p0 + (3/11) p1 + (2/11) p2: u = 3/11, v = 2/11.
-  const rt::AccelKind kind = GENERATE(rt::AccelKind::embree, rt::AccelKind::reference);
+  const rt::AccelKind kind =
+      GENERATE(rt::AccelKind::embree, rt::AccelKind::reference, rt::AccelKind::reference_barycentric);
   INFO("accel " << rt::to_string(kind));
   const rt::FlatScene flat = flat_triangles({{Vec3f(1, 0, 0), Vec3f(0, 2, 0), Vec3f(0, 0, 3)}});
   const std::unique_ptr<rt::Accel> accel = rt::build_accel(kind, flat);
@@ -114,7 +118,8 @@ TEST_CASE("intersectors solve a general triangle", "[accel]") {
 }
 
 TEST_CASE("intersectors return the closest of two stacked triangles", "[accel]") {
-  const rt::AccelKind kind = GENERATE(rt::AccelKind::embree, rt::AccelKind::reference);
+  const rt::AccelKind kind =
+      GENERATE(rt::AccelKind::embree, rt::AccelKind::reference, rt::AccelKind::reference_barycentric);
   INFO("accel " << rt::to_string(kind));
   // Triangle 0 at z = -1 (larger), triangle 1 at z = 0: the nearer one has the higher index.
   const rt::FlatScene flat = flat_triangles({{Vec3f(-1, -1, -1), Vec3f(3, -1, -1), Vec3f(-1, 3, -1)}, kUnitTriangle});
@@ -146,21 +151,30 @@ TEST_CASE("intersectors return the closest of two stacked triangles", "[accel]")
   CHECK(outside.t == Approx(2.0f).epsilon(1e-6));
 }
 
-TEST_CASE("reference intersector breaks ties in t towards the lowest index", "[accel]") {
-  const rt::FlatScene flat = flat_triangles({kUnitTriangle, kUnitTriangle, kUnitTriangle});
-  const rt::ReferenceAccel reference(flat);
-  const rt::Hit hit = reference.intersect(make_ray({0.25f, 0.25f, 1.0f}, {0, 0, -1}));
-  REQUIRE(hit.found());
-  CHECK(hit.triangle == 0);
-  const std::unique_ptr<rt::Accel> embree = rt::build_accel(rt::AccelKind::embree, flat);
-  const rt::Hit embree_hit = embree->intersect(make_ray({0.25f, 0.25f, 1.0f}, {0, 0, -1}));
-  REQUIRE(embree_hit.found());
-  CHECK(embree_hit.triangle < 3);
-  CHECK(embree_hit.t == Approx(1.0f).epsilon(1e-6));
+TEST_CASE("every intersector breaks exact ties in t towards the lowest index", "[accel]") {
+  const rt::AccelKind kind =
+      GENERATE(rt::AccelKind::embree, rt::AccelKind::reference, rt::AccelKind::reference_barycentric);
+  const bool robust = GENERATE(true, false);
+  INFO("accel " << rt::to_string(kind) << ", embree robust " << robust);
+  // Three identical triangles compute bit-identical t; more copies spread them over BVH leaves.
+  const std::size_t copies = GENERATE(3, 40);
+  const rt::FlatScene flat = flat_triangles(std::vector<std::array<Vec3f, 3>>(copies, kUnitTriangle));
+  rt::AccelOptions options;
+  options.embree_robust = robust;
+  const std::unique_ptr<rt::Accel> accel = rt::build_accel(kind, flat, options);
+  for (const Vec3f& origin : {Vec3f(0.25f, 0.25f, 1.0f), Vec3f(0.1f, 0.7f, -3.0f), Vec3f(0.6f, 0.1f, 2.0f)}) {
+    const rt::Hit hit = accel->intersect(make_ray(origin, {0, 0, origin.z > 0 ? -1.0f : 1.0f}));
+    REQUIRE(hit.found());
+    CHECK(hit.triangle == 0);
+    CHECK(hit.t == Approx(std::abs(origin.z)).epsilon(1e-6));
+    CHECK(hit.u == Approx(origin.x).epsilon(1e-6));
+    CHECK(hit.v == Approx(origin.y).epsilon(1e-6));
+  }
 }
 
 TEST_CASE("intersectors over an empty scene miss everything", "[accel]") {
-  const rt::AccelKind kind = GENERATE(rt::AccelKind::embree, rt::AccelKind::reference);
+  const rt::AccelKind kind =
+      GENERATE(rt::AccelKind::embree, rt::AccelKind::reference, rt::AccelKind::reference_barycentric);
   INFO("accel " << rt::to_string(kind));
   rt::Scene scene = rt_test::make_scene({});  // a root node without models
   const rt::FlatScene flat = rt::flatten_scene(scene);
@@ -178,59 +192,76 @@ TEST_CASE("accel kind names round-trip", "[accel]") {
   CHECK(rt::parse_accel_kind("reference") == rt::AccelKind::reference);
   CHECK(rt::to_string(rt::AccelKind::embree) == "embree");
   CHECK(rt::to_string(rt::AccelKind::reference) == "reference");
+  CHECK(rt::parse_accel_kind("reference-barycentric") == rt::AccelKind::reference_barycentric);
+  CHECK(rt::to_string(rt::AccelKind::reference_barycentric) == "reference-barycentric");
+  CHECK(rt::parse_embree_quality("low") == rt::EmbreeQuality::low);
+  CHECK(rt::parse_embree_quality("high") == rt::EmbreeQuality::high);
+  CHECK_THROWS_AS(rt::parse_embree_quality("best"), rt::InputError);
   CHECK_THROWS_AS(rt::parse_accel_kind("bogus"), rt::InputError);
   CHECK_THROWS_AS(rt::parse_accel_kind(""), rt::InputError);
 }
 
-TEST_CASE("intersect_triangle_barycentric solves the seed's system", "[accel]") {
+TEST_CASE("both single-triangle tests solve the seed's system", "[accel]") {
+  using TriangleTest = bool (*)(const Vec3d&, const Vec3d&, double, double, const Vec3d&, const Vec3d&, const Vec3d&,
+                                rt::TriangleHitD&);
+  const TriangleTest test = GENERATE(as<TriangleTest>{}, &rt::intersect_triangle_barycentric,
+                                     &rt::intersect_triangle_watertight);
+  INFO((test == &rt::intersect_triangle_watertight ? "watertight" : "barycentric"));
+  auto intersect = [test](Vec3d o, Vec3d d, double tnear, double tfar, Vec3d a, Vec3d b, Vec3d c, double& t,
+                          double& l2, double& l3) {
+    rt::TriangleHitD hit;
+    const bool found = test(o, d, tnear, tfar, a, b, c, hit);
+    if (found) std::tie(t, l2, l3) = std::tie(hit.t, hit.b1, hit.b2);
+    return found;
+  };
   const Vec3d p1(0, 0, 0), p2(1, 0, 0), p3(0, 1, 0);
   double t = -7.0, l2 = -7.0, l3 = -7.0;
   const double inf = std::numeric_limits<double>::infinity();
 
   SECTION("interior hit") {
-    REQUIRE(rt::intersect_triangle_barycentric({0.25, 0.25, 1.0}, {0, 0, -1}, 0.0, inf, p1, p2, p3, t, l2, l3));
+    REQUIRE(intersect({0.25, 0.25, 1.0}, {0, 0, -1}, 0.0, inf, p1, p2, p3, t, l2, l3));
     CHECK(t == 1.0);
     CHECK(l2 == 0.25);
     CHECK(l3 == 0.25);
   }
   SECTION("general triangle, hand-solved (see the accel test above)") {
-    REQUIRE(rt::intersect_triangle_barycentric({0, 0, 0}, {1, 1, 1}, 0.0, inf, {1, 0, 0}, {0, 2, 0}, {0, 0, 3}, t,
+    REQUIRE(intersect({0, 0, 0}, {1, 1, 1}, 0.0, inf, {1, 0, 0}, {0, 2, 0}, {0, 0, 3}, t,
                                                l2, l3));
     CHECK(t == Approx(6.0 / 11.0).epsilon(1e-14));
     CHECK(l2 == Approx(3.0 / 11.0).epsilon(1e-14));
     CHECK(l3 == Approx(2.0 / 11.0).epsilon(1e-14));
   }
   SECTION("edges and vertices are inside (all lambdas >= 0)") {
-    REQUIRE(rt::intersect_triangle_barycentric({0.5, 0.0, 1.0}, {0, 0, -1}, 0.0, inf, p1, p2, p3, t, l2, l3));
+    REQUIRE(intersect({0.5, 0.0, 1.0}, {0, 0, -1}, 0.0, inf, p1, p2, p3, t, l2, l3));
     CHECK(l2 == 0.5);
     CHECK(l3 == 0.0);
-    REQUIRE(rt::intersect_triangle_barycentric({0.0, 0.0, 1.0}, {0, 0, -1}, 0.0, inf, p1, p2, p3, t, l2, l3));
+    REQUIRE(intersect({0.0, 0.0, 1.0}, {0, 0, -1}, 0.0, inf, p1, p2, p3, t, l2, l3));
     CHECK(l2 == 0.0);
     CHECK(l3 == 0.0);
-    REQUIRE(rt::intersect_triangle_barycentric({0.5, 0.5, 1.0}, {0, 0, -1}, 0.0, inf, p1, p2, p3, t, l2, l3));
+    REQUIRE(intersect({0.5, 0.5, 1.0}, {0, 0, -1}, 0.0, inf, p1, p2, p3, t, l2, l3));
     CHECK(l2 + l3 == 1.0);
   }
   SECTION("just outside an edge misses") {
-    CHECK_FALSE(rt::intersect_triangle_barycentric({0.5, -1e-12, 1.0}, {0, 0, -1}, 0.0, inf, p1, p2, p3, t, l2, l3));
-    CHECK_FALSE(rt::intersect_triangle_barycentric({0.5, 0.5 + 1e-12, 1.0}, {0, 0, -1}, 0.0, inf, p1, p2, p3, t, l2,
+    CHECK_FALSE(intersect({0.5, -1e-12, 1.0}, {0, 0, -1}, 0.0, inf, p1, p2, p3, t, l2, l3));
+    CHECK_FALSE(intersect({0.5, 0.5 + 1e-12, 1.0}, {0, 0, -1}, 0.0, inf, p1, p2, p3, t, l2,
                                                    l3));
   }
   SECTION("a ray parallel to the triangle never hits") {
-    CHECK_FALSE(rt::intersect_triangle_barycentric({0.25, 0.25, 1.0}, {1, 0, 0}, 0.0, inf, p1, p2, p3, t, l2, l3));
+    CHECK_FALSE(intersect({0.25, 0.25, 1.0}, {1, 0, 0}, 0.0, inf, p1, p2, p3, t, l2, l3));
     // Even inside the triangle's plane.
-    CHECK_FALSE(rt::intersect_triangle_barycentric({-1.0, 0.25, 0.0}, {1, 0, 0}, 0.0, inf, p1, p2, p3, t, l2, l3));
+    CHECK_FALSE(intersect({-1.0, 0.25, 0.0}, {1, 0, 0}, 0.0, inf, p1, p2, p3, t, l2, l3));
   }
   SECTION("a degenerate triangle never hits") {
     // Collinear corners and a repeated corner: zero area, zero determinant.
-    CHECK_FALSE(rt::intersect_triangle_barycentric({0.5, 0.0, 1.0}, {0, 0, -1}, 0.0, inf, {0, 0, 0}, {1, 0, 0},
+    CHECK_FALSE(intersect({0.5, 0.0, 1.0}, {0, 0, -1}, 0.0, inf, {0, 0, 0}, {1, 0, 0},
                                                    {2, 0, 0}, t, l2, l3));
-    CHECK_FALSE(rt::intersect_triangle_barycentric({0.0, 0.0, 1.0}, {0, 0, -1}, 0.0, inf, {0, 0, 0}, {0, 0, 0},
+    CHECK_FALSE(intersect({0.0, 0.0, 1.0}, {0, 0, -1}, 0.0, inf, {0, 0, 0}, {0, 0, 0},
                                                    {0, 0, 0}, t, l2, l3));
   }
   SECTION("tnear and tfar bound t, inclusively") {
-    CHECK_FALSE(rt::intersect_triangle_barycentric({0.25, 0.25, 1.0}, {0, 0, -1}, 1.5, inf, p1, p2, p3, t, l2, l3));
-    CHECK_FALSE(rt::intersect_triangle_barycentric({0.25, 0.25, 1.0}, {0, 0, -1}, 0.0, 0.5, p1, p2, p3, t, l2, l3));
-    CHECK(rt::intersect_triangle_barycentric({0.25, 0.25, 1.0}, {0, 0, -1}, 1.0, 1.0, p1, p2, p3, t, l2, l3));
-    CHECK_FALSE(rt::intersect_triangle_barycentric({0.25, 0.25, 1.0}, {0, 0, 1}, 0.0, inf, p1, p2, p3, t, l2, l3));
+    CHECK_FALSE(intersect({0.25, 0.25, 1.0}, {0, 0, -1}, 1.5, inf, p1, p2, p3, t, l2, l3));
+    CHECK_FALSE(intersect({0.25, 0.25, 1.0}, {0, 0, -1}, 0.0, 0.5, p1, p2, p3, t, l2, l3));
+    CHECK(intersect({0.25, 0.25, 1.0}, {0, 0, -1}, 1.0, 1.0, p1, p2, p3, t, l2, l3));
+    CHECK_FALSE(intersect({0.25, 0.25, 1.0}, {0, 0, 1}, 0.0, inf, p1, p2, p3, t, l2, l3));
   }
 }

@@ -9,6 +9,7 @@
 
 #include "rt/accel/accel.h"
 #include "rt/flatten/flatten.h"
+#include "rt/core/error.h"
 #include "rt/render/shade.h"
 #include "test_util.h"
 
@@ -340,9 +341,11 @@ TEST_CASE("a mirror alone reflects the background once", "[shade]") {
 }
 
 TEST_CASE("offset_ray_origin moves off the surface to the side of the direction", "[shade]") {
-  const Vec3d point(0.3, 0.2, 0.0), normal(0.0, 0.0, 1.0);
-  const Vec3f above = rt::offset_ray_origin(point, normal, {0.0, 1.0, 1.0});
-  const Vec3f below = rt::offset_ray_origin(point, normal, {0.0, 1.0, -1.0});
+  const rt::RayOffset policy = GENERATE(rt::RayOffset{}, rt::parse_ray_offset("fixed:1e-3"));
+  INFO("ray offset " << rt::to_string(policy));
+  const rt::SurfacePoint surface{{0.3, 0.2, 0.0}, {0.0, 0.0, 1.0}, {0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  const Vec3f above = rt::offset_ray_origin(policy, surface, {0.0, 1.0, 1.0});
+  const Vec3f below = rt::offset_ray_origin(policy, surface, {0.0, 1.0, -1.0});
   CHECK(above.x == 0.3f);
   CHECK(above.y == 0.2f);
   CHECK(above.z > 0.0f);
@@ -350,6 +353,17 @@ TEST_CASE("offset_ray_origin moves off the surface to the side of the direction"
   CHECK(below.z < 0.0f);
   CHECK(below.z > -1e-2f);
   CHECK(below.z == -above.z);
+  if (policy.mode == rt::RayOffset::Mode::fixed) CHECK(above.z == 1e-3f);
+}
+
+TEST_CASE("ray offsets parse and print", "[shade]") {
+  CHECK(rt::parse_ray_offset("robust").mode == rt::RayOffset::Mode::robust);
+  const rt::RayOffset fixed = rt::parse_ray_offset("fixed:2.5e-4");
+  CHECK(fixed.mode == rt::RayOffset::Mode::fixed);
+  CHECK(fixed.epsilon == 2.5e-4);
+  CHECK(rt::to_string(fixed) == "fixed:0.00025");
+  for (const char* bad : {"", "fixed", "fixed:", "fixed:0", "fixed:-1", "fixed:abc", "fixed:1e-4x", "fixed:inf", "tight"})
+    CHECK_THROWS_AS(rt::parse_ray_offset(bad), rt::InputError);
 }
 
 TEST_CASE("RayCounts add per kind", "[shade]") {

@@ -1,25 +1,51 @@
 #include "rt/accel/accel.h"
 
+#include <string>
+
 #include "rt/accel/embree_accel.h"
 #include "rt/accel/reference_accel.h"
 #include "rt/core/error.h"
 
 namespace rt {
 
-std::unique_ptr<Accel> build_accel(AccelKind kind, const FlatScene& scene) {
+std::unique_ptr<Accel> build_accel(AccelKind kind, const FlatScene& scene, const AccelOptions& options) {
   switch (kind) {
-    case AccelKind::embree: return std::make_unique<EmbreeAccel>(scene);
-    case AccelKind::reference: return std::make_unique<ReferenceAccel>(scene);
+    case AccelKind::embree: return std::make_unique<EmbreeAccel>(scene, options);
+    case AccelKind::reference: return std::make_unique<ReferenceAccel>(scene, ReferenceTest::watertight);
+    case AccelKind::reference_barycentric: return std::make_unique<ReferenceAccel>(scene, ReferenceTest::barycentric);
   }
   throw RuntimeError("unknown accelerator kind");
 }
 
-std::string_view to_string(AccelKind kind) { return kind == AccelKind::embree ? "embree" : "reference"; }
+std::string_view to_string(AccelKind kind) {
+  switch (kind) {
+    case AccelKind::embree: return "embree";
+    case AccelKind::reference: return "reference";
+    case AccelKind::reference_barycentric: return "reference-barycentric";
+  }
+  return "?";
+}
 
 AccelKind parse_accel_kind(std::string_view name) {
-  if (name == "embree") return AccelKind::embree;
-  if (name == "reference") return AccelKind::reference;
-  throw InputError("unknown accelerator '" + std::string(name) + "' (expected embree or reference)");
+  for (AccelKind kind : {AccelKind::embree, AccelKind::reference, AccelKind::reference_barycentric})
+    if (name == to_string(kind)) return kind;
+  throw InputError("unknown accelerator '" + std::string(name) +
+                   "' (expected embree, reference or reference-barycentric)");
+}
+
+std::string_view to_string(EmbreeQuality quality) {
+  switch (quality) {
+    case EmbreeQuality::low: return "low";
+    case EmbreeQuality::medium: return "medium";
+    case EmbreeQuality::high: return "high";
+  }
+  return "?";
+}
+
+EmbreeQuality parse_embree_quality(std::string_view name) {
+  for (EmbreeQuality quality : {EmbreeQuality::low, EmbreeQuality::medium, EmbreeQuality::high})
+    if (name == to_string(quality)) return quality;
+  throw InputError("unknown Embree build quality '" + std::string(name) + "' (expected low, medium or high)");
 }
 
 }  // namespace rt

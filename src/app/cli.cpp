@@ -36,6 +36,9 @@ struct RenderArgs {
   std::string output;
   std::optional<int> width, height, max_depth;
   std::string accel = "embree";
+  std::string embree_robust = "on";
+  std::string embree_quality = "medium";
+  std::string ray_offset = "robust";
   int threads = 0;
   std::string stats_path;
   bool quiet = false;
@@ -50,12 +53,22 @@ std::string default_output(const Scene& scene, const std::string& scene_path) {
   return std::filesystem::path(scene_path).stem().string() + ".png";
 }
 
+void warn_about_dropped_triangles(const Scene& scene, const FlatScene& flat, bool quiet) {
+  if (flat.degenerate_triangles_dropped > 0 && !quiet)
+    fmt::print(stderr, "rt: warning: {}: dropped {} degenerate triangle(s) (zero area)\n", scene.source,
+               flat.degenerate_triangles_dropped);
+}
+
 int run_render(const RenderArgs& args) {
   const auto start = Clock::now();
   const int threads = args.threads > 0 ? args.threads : tbb::info::default_concurrency();
   // Limits Embree's BVH build (TBB tasks) as well as the render loop.
   tbb::global_control thread_limit(tbb::global_control::max_allowed_parallelism, threads);
   const AccelKind accel_kind = parse_accel_kind(args.accel);
+  AccelOptions accel_options;
+  accel_options.embree_robust = args.embree_robust == "on";
+  accel_options.embree_quality = parse_embree_quality(args.embree_quality);
+  const RayOffset ray_offset = parse_ray_offset(args.ray_offset);
 
   Scene scene = load_scene_or_default(args.scene_path);
   if (args.width) scene.settings.width = *args.width;
@@ -70,14 +83,16 @@ int run_render(const RenderArgs& args) {
   auto phase_start = Clock::now();
   const FlatScene flat = flatten_scene(scene);
   const double flatten_s = seconds_since(phase_start);
+  warn_about_dropped_triangles(scene, flat, args.quiet);
 
   phase_start = Clock::now();
-  const std::unique_ptr<Accel> accel = build_accel(accel_kind, flat);
+  const std::unique_ptr<Accel> accel = build_accel(accel_kind, flat, accel_options);
   const double build_s = seconds_since(phase_start);
 
   ProgressBar progress("rendering", !args.quiet);
   RenderOptions options;
   options.threads = threads;
+  options.ray_offset = ray_offset;
   options.on_progress = [&](double fraction) { progress.update(fraction); };
   const RenderResult result = render_image(scene, flat, *accel, options);
   progress.finish();
@@ -93,10 +108,14 @@ int run_render(const RenderArgs& args) {
     stats["scene"] = args.scene_path.empty() ? "<built-in default>" : args.scene_path;
     stats["output"] = output;
     stats["accel"] = to_string(accel_kind);
+    if (accel_kind == AccelKind::embree)
+      stats["embree"] = {{"robust", accel_options.embree_robust}, {"quality", to_string(accel_options.embree_quality)}};
+    stats["ray_offset"] = to_string(ray_offset);
     stats["threads"] = threads;
     stats["image"] = {{"width", scene.settings.width}, {"height", scene.settings.height}};
     stats["max_depth"] = scene.settings.max_depth;
     stats["triangles"] = flat.triangle_count();
+    stats["degenerate_triangles_dropped"] = flat.degenerate_triangles_dropped;
     stats["lights"] = scene.lights.size();
     stats["rays"] = {{"camera", result.rays.camera},
                      {"shadow", result.rays.shadow},
@@ -132,7 +151,8 @@ int run_info(const std::string& scene_path) {
   fmt::print("camera      eye ({}, {}, {}), target ({}, {}, {}), up ({}, {}, {}), fovy {} deg\n", c.eye.x, c.eye.y,
              c.eye.z, c.target.x, c.target.y, c.target.z, c.up.x, c.up.y, c.up.z, c.fovy_degrees);
   fmt::print("graph       {} nodes, {} models\n", scene.nodes.size(), models);
-  fmt::print("geometry    {} triangles, {} vertices\n", flat.triangle_count(), flat.positions.size());
+  fmt::print("geometry    {} triangles, {} vertices, {} degenerate triangles dropped\n", flat.triangle_count(),
+             flat.positions.size(), flat.degenerate_triangles_dropped);
   if (!flat.positions.empty())
     fmt::print("bounds      ({}, {}, {}) .. ({}, {}, {})\n", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
   fmt::print("materials   {}\n", scene.materials.size());
@@ -169,8 +189,20 @@ int run_cli(int argc, char** argv) {
   render->add_option("--height", render_args.height, "Image height in pixels")->check(CLI::Range(1, kMaxImageSide));
   render->add_option("--max-depth", render_args.max_depth, "Reflection depth (0 = no reflections)")
       ->check(CLI::Range(0, kMaxReflectionDepth));
-  render->add_option("--accel", render_args.accel, "Intersector: embree (fast) or reference (double, brute force)")
-      ->check(CLI::IsMember({"embree", "reference"}))
+  render->add_option("--accel", render_args.accel, "Intersector: embree (fast), reference (watertight, double, brute force) or "
+                     "reference-barycentric (the seed's plain solve, double, brute force)")
+      ->check(CLI::IsMember({"embree", "reference", "reference-barycentric"}))
+      ->capture_default_str();
+  render->add_option("--embree-robust", render_args.embree_robust,
+                     "Embree's robust mode: watertight triangle test, conservative boxes")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
+  render->add_option("--embree-quality", render_args.embree_quality, "Embree BVH build quality")
+      ->check(CLI::IsMember({"low", "medium", "high"}))
+      ->capture_default_str();
+  render->add_option("--ray-offset", render_args.ray_offset,
+                     "Self-intersection policy of secondary rays: robust (scale-independent error bound) "
+                     "or fixed:EPS (a constant distance in scene units, e.g. fixed:1e-4)")
       ->capture_default_str();
   render->add_option("--threads", render_args.threads, "Worker threads (0 = all cores)")
       ->check(CLI::Range(0, 1024))

@@ -56,6 +56,12 @@ void append_model(const Scene& scene, std::uint32_t node_index, const Model& mod
   // inverse-transposed normals; swapping two indices restores their agreement.
   const bool flip = det < 0.0;
   for (const Vec3u& t : mesh->triangles) {
+    // Zero area exactly: the cross product of the float32 world positions' edges, in double.
+    const Vec3d p0(flat.positions[base + t.x]), p1(flat.positions[base + t.y]), p2(flat.positions[base + t.z]);
+    if (glm::cross(p1 - p0, p2 - p0) == Vec3d(0.0)) {
+      ++flat.degenerate_triangles_dropped;
+      continue;
+    }
     flat.triangles.push_back(flip ? Vec3u(base + t.x, base + t.z, base + t.y) : base + t);
     flat.material_ids.push_back(model.material);
   }

@@ -5,30 +5,11 @@
 
 namespace rt {
 
-namespace {
-
-// Fixed offset for secondary-ray origins, relative to the magnitude of the hit point's
-// coordinates: float32 positions carry a rounding error of about 6e-8 |p|, and the float32
-// intersection adds a few ulps more, so 1e-4 (1 + max|p_i|) clears both by orders of magnitude
-// for scenes of ordinary size while staying invisible (sub-pixel) in them. It is not a bound;
-// the numerics work replaces it with one derived from the floating-point error of the hit.
-constexpr double kRayOffset = 1e-4;
-
-double max_abs_component(const Vec3d& p) { return std::max({std::abs(p.x), std::abs(p.y), std::abs(p.z)}); }
-
-}  // namespace
-
 RayCounts& RayCounts::operator+=(const RayCounts& other) {
   camera += other.camera;
   shadow += other.shadow;
   reflection += other.reflection;
   return *this;
-}
-
-Vec3f offset_ray_origin(const Vec3d& point, const Vec3d& geometric_normal, const Vec3d& direction) {
-  const double offset = kRayOffset * (1.0 + max_abs_component(point));
-  const double side = glm::dot(geometric_normal, direction) >= 0.0 ? 1.0 : -1.0;
-  return Vec3f(point + side * offset * geometric_normal);
 }
 
 Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCounts& counts) {
@@ -42,8 +23,8 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
   const Vec3u tri = flat.triangles[hit.triangle];
   const Vec3d p0(flat.positions[tri.x]), p1(flat.positions[tri.y]), p2(flat.positions[tri.z]);
   const double b1 = hit.u, b2 = hit.v, b0 = 1.0 - b1 - b2;
-  const Vec3d point = b0 * p0 + b1 * p1 + b2 * p2;
-  const Vec3d geometric_normal = glm::normalize(glm::cross(p1 - p0, p2 - p0));
+  const SurfacePoint surface{b0 * p0 + b1 * p1 + b2 * p2, glm::normalize(glm::cross(p1 - p0, p2 - p0)), p0, p1, p2};
+  const Vec3d& point = surface.point;
   const Vec3d normal = glm::normalize(b0 * Vec3d(flat.normals[tri.x]) + b1 * Vec3d(flat.normals[tri.y]) +
                                       b2 * Vec3d(flat.normals[tri.z]));
   const Vec3d direction = glm::normalize(Vec3d(ray.direction));
@@ -65,14 +46,11 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
       intensity /= light.attenuation.x + light.attenuation.y * d + light.attenuation.z * d * d;
     }
     Ray shadow_ray;
-    shadow_ray.origin = offset_ray_origin(point, geometric_normal, to_light);
-    // World units from the shadow ray's origin to the light (infinite for directional), stopping
-    // short of a point light by the same offset, so a surface the light sits on is no occluder.
-    const double light_distance =
-        light.is_directional() ? double(kInfinity)
-                               : glm::length(Vec3d(light.position) - Vec3d(shadow_ray.origin)) -
-                                     kRayOffset * (1.0 + max_abs_component(Vec3d(light.position)));
-    // A point light closer to the surface than the offset cannot be occluded; no ray is needed.
+    shadow_ray.origin = offset_ray_origin(context.ray_offset, surface, to_light);
+    const double light_distance = light.is_directional()
+                                      ? double(kInfinity)
+                                      : shadow_ray_tfar(context.ray_offset, Vec3d(shadow_ray.origin), Vec3d(light.position));
+    // A point light closer to the surface than the margin cannot be occluded; no ray is needed.
     if (light_distance > 0.0) {
       shadow_ray.direction = Vec3f(to_light);
       shadow_ray.tfar = static_cast<float>(light_distance);
@@ -92,7 +70,7 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
   if (depth < context.scene.settings.max_depth) {
     const Vec3d reflected = direction - 2.0 * glm::dot(direction, normal) * normal;
     Ray reflection_ray;
-    reflection_ray.origin = offset_ray_origin(point, geometric_normal, reflected);
+    reflection_ray.origin = offset_ray_origin(context.ray_offset, surface, reflected);
     reflection_ray.direction = Vec3f(reflected);
     ++counts.reflection;
     radiance += specular * Vec3d(find_color(context, reflection_ray, depth + 1, counts));

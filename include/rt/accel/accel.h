@@ -36,15 +36,29 @@ struct Hit {
   bool found() const { return triangle != kNoTriangle; }
 };
 
-enum class AccelKind { embree, reference };
+// embree: Embree 3, float32. reference: watertight ray/triangle test in double precision, brute
+// force. reference_barycentric: the seed's plain barycentric solve in double, brute force (kept to
+// show what the watertight formulation buys).
+enum class AccelKind { embree, reference, reference_barycentric };
+
+enum class EmbreeQuality { low, medium, high };
+
+// Options for building an Accel; the reference backends ignore the Embree ones.
+struct AccelOptions {
+  // RTC_SCENE_FLAG_ROBUST: Embree's watertight (Pluecker) triangle test and conservative box tests.
+  // On by default: it removes Embree's misses along shared edges for a few per cent of time (see
+  // docs/robustness.md for the measurements that chose this default).
+  bool embree_robust = true;
+  EmbreeQuality embree_quality = EmbreeQuality::medium;  // BVH build quality (RTCBuildQuality)
+};
 
 // Thread-safe after construction: many threads may query one Accel concurrently.
 class Accel {
  public:
   virtual ~Accel() = default;
 
-  // Closest intersection along the ray within [tnear, tfar]; a miss returns Hit{}.
-  // Ties in t go to the lowest triangle index in the reference; Embree gives no such promise.
+  // Closest intersection along the ray within [tnear, tfar]; a miss returns Hit{}. Among
+  // triangles hit at the same computed t the lowest triangle index wins, in every backend.
   virtual Hit intersect(const Ray& ray) const = 0;
 
   // True when any triangle is hit within [tnear, tfar]. Cheaper than intersect().
@@ -55,10 +69,13 @@ class Accel {
 
 // Builds the chosen backend over `scene`, which must outlive the result (Embree shares its
 // buffers without copying). Throws RuntimeError if the backend fails.
-std::unique_ptr<Accel> build_accel(AccelKind kind, const FlatScene& scene);
+std::unique_ptr<Accel> build_accel(AccelKind kind, const FlatScene& scene, const AccelOptions& options = {});
 
-// "embree" / "reference"; parse_accel_kind throws InputError on anything else.
+// Names as used on the command line: "embree", "reference", "reference-barycentric"; and
+// "low", "medium", "high". The parse functions throw InputError on anything else.
 std::string_view to_string(AccelKind kind);
 AccelKind parse_accel_kind(std::string_view name);
+std::string_view to_string(EmbreeQuality quality);
+EmbreeQuality parse_embree_quality(std::string_view name);
 
 }  // namespace rt

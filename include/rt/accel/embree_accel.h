@@ -12,9 +12,14 @@ namespace rt {
 // buffers are shared with `scene` (no copies). Closest hit via rtcIntersect1, shadows via
 // rtcOccluded1. Embree's error callback only records; the constructor throws RuntimeError
 // with the recorded message if device creation or the BVH build failed.
+//
+// Embree itself does not say which of several triangles hit at exactly the same t it reports
+// (that depends on the BVH layout). intersect() makes it deterministic, lowest index first like
+// the reference: after the closest hit at t, a second query restricted to a few ulps around t
+// enumerates every triangle whose computed t is exactly the same and keeps the lowest index.
 class EmbreeAccel final : public Accel {
  public:
-  explicit EmbreeAccel(const FlatScene& scene);
+  EmbreeAccel(const FlatScene& scene, const AccelOptions& options);
   ~EmbreeAccel() override;
   EmbreeAccel(const EmbreeAccel&) = delete;
   EmbreeAccel& operator=(const EmbreeAccel&) = delete;

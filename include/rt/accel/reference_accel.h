@@ -1,7 +1,6 @@
 #pragma once
-// The reference intersector: the seed's barycentric solve in double precision, brute force over
-// every triangle. Slow by design (O(triangles) per ray) and meant to be right, so that the
-// Embree backend can be checked against it.
+// The reference intersectors: brute force over every triangle in double precision. Slow by
+// design (O(triangles) per ray) and meant to be right, so that Embree can be checked against them.
 
 #include <vector>
 
@@ -9,29 +8,52 @@
 
 namespace rt {
 
-// Solves the seed's system  lambda1 p1 + lambda2 p2 + lambda3 p3 - t d = p0,
-// lambda1 + lambda2 + lambda3 = 1  for one triangle, in double precision, by Cramer's rule on
-// the 3x3 system left after eliminating lambda1. Inputs are world space. Returns true and
-// writes (t, lambda2, lambda3) when all lambdas >= 0 and tnear <= t <= tfar; a triangle the
-// ray is parallel to, or a degenerate one (zero determinant), is never hit.
+// Result of one ray/triangle test: ray parameter t and the barycentric weights b1, b2 of the
+// second and third vertex (the point is (1 - b1 - b2) p0 + b1 p1 + b2 p2).
+struct TriangleHitD {
+  double t = 0.0, b1 = 0.0, b2 = 0.0;
+};
+
+// The seed's solve of  lambda1 p1 + lambda2 p2 + lambda3 p3 - t d = p0, sum lambda = 1,  in double
+// by Cramer's rule on the 3x3 system left after eliminating lambda1. World space. Hits when all
+// lambdas >= 0 and tnear <= t <= tfar; a parallel ray or a zero-area triangle never hits.
+// Not watertight: rounding can let a ray slip between two triangles that share an edge.
 bool intersect_triangle_barycentric(const Vec3d& origin, const Vec3d& direction, double tnear, double tfar,
-                                    const Vec3d& p1, const Vec3d& p2, const Vec3d& p3, double& t,
-                                    double& lambda2, double& lambda3);
+                                    const Vec3d& p1, const Vec3d& p2, const Vec3d& p3, TriangleHitD& hit);
+
+// Watertight ray/triangle test of Woop, Benthin and Wald, "Watertight Ray/Triangle Intersection",
+// JCGT 2(1), 2013 (as in pbrt-v4's IntersectTriangle), in double precision. The vertices are moved
+// into a ray-centred frame where the ray is the +z axis; the three 2D edge functions then decide
+// inside/outside. An edge function that rounds to zero is recomputed with an exactly-signed
+// difference of products, so two triangles sharing an edge always agree on which side of it the
+// ray passes: no ray slips through a closed mesh. Edges and vertices count as inside.
+// Degenerate triangles (zero area, collinear or repeated vertices) and zero directions never hit
+// and never produce NaN. Hits when tnear <= t <= tfar.
+bool intersect_triangle_watertight(const Vec3d& origin, const Vec3d& direction, double tnear, double tfar,
+                                   const Vec3d& p0, const Vec3d& p1, const Vec3d& p2, TriangleHitD& hit);
+
+enum class ReferenceTest { watertight, barycentric };
 
 // Holds double-precision copies of the float32 vertices Embree sees (exactly representable, so
-// both backends intersect the same triangles). Equal t goes to the lowest triangle index.
+// all backends intersect the same triangles). Among equal t the lowest triangle index wins.
 class ReferenceAccel final : public Accel {
  public:
-  explicit ReferenceAccel(const FlatScene& scene);
+  ReferenceAccel(const FlatScene& scene, ReferenceTest test);
 
   Hit intersect(const Ray& ray) const override;
   bool occluded(const Ray& ray) const override;
-  std::string_view name() const override { return "reference"; }
+  std::string_view name() const override {
+    return test_ == ReferenceTest::watertight ? "reference" : "reference-barycentric";
+  }
 
  private:
   struct TriangleD {
-    Vec3d p1, e1, e2;  // first vertex and the edges to the other two
+    Vec3d p0, p1, p2;
   };
+  bool intersect_one(const TriangleD& tri, const Vec3d& origin, const Vec3d& direction, double tnear, double tfar,
+                     TriangleHitD& hit) const;
+
+  ReferenceTest test_;
   std::vector<TriangleD> triangles_;
 };
 

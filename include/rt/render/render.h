@@ -12,6 +12,7 @@ namespace rt {
 struct RenderOptions {
   int threads = 0;     // worker threads; 0 = all hardware threads
   int tile_size = 16;  // square tiles, in pixels
+  RayOffset ray_offset{};
   // Called from worker threads (serialised) with the fraction of tiles done, in [0, 1].
   std::function<void(double)> on_progress;
 };

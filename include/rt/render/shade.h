@@ -6,6 +6,7 @@
 
 #include "rt/accel/accel.h"
 #include "rt/flatten/flatten.h"
+#include "rt/render/ray_offset.h"
 #include "rt/scene/scene.h"
 
 namespace rt {
@@ -26,6 +27,7 @@ struct ShadingContext {
   const Scene& scene;      // materials, lights, settings (max_depth, background)
   const FlatScene& flat;   // world-space geometry the accel was built on
   const Accel& accel;
+  RayOffset ray_offset{};  // self-intersection policy of shadow and reflection rays
 };
 
 // The seed's FindColor for a ray whose origin and direction are world space:
@@ -36,10 +38,5 @@ struct ShadingContext {
 // reflection recurses while depth < max_depth. A miss returns settings.background.
 // Computed in double, returned as float32 linear RGB.
 Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCounts& counts);
-
-// Where secondary rays start: the hit point moved off the surface along the geometric normal,
-// to the side `direction` points to, by kRayOffset scaled to the point's magnitude. This is the
-// one place the self-intersection policy lives. World space, double in, float32 out.
-Vec3f offset_ray_origin(const Vec3d& point, const Vec3d& geometric_normal, const Vec3d& direction);
 
 }  // namespace rt

@@ -1,0 +1,41 @@
+#pragma once
+// Where secondary rays start, and where shadow rays stop: the self-intersection policy, in one place.
+
+#include <string>
+#include <string_view>
+
+#include "rt/accel/accel.h"
+
+namespace rt {
+
+// robust: offsets derived from the floating-point error of the hit point and of a float32
+// ray/triangle test (scale-independent; the default). fixed: a constant distance `epsilon` in world
+// units, the classic textbook choice, kept so the difference can be measured.
+struct RayOffset {
+  enum class Mode { robust, fixed };
+  Mode mode = Mode::robust;
+  double epsilon = 1e-4;  // world units; fixed mode only
+};
+
+// Parses "robust" or "fixed:EPS" (EPS a positive number, e.g. fixed:1e-4); throws InputError.
+RayOffset parse_ray_offset(std::string_view text);
+std::string to_string(const RayOffset& offset);
+
+// The surface a secondary ray leaves: a point on triangle (p0, p1, p2), world space, double.
+struct SurfacePoint {
+  Vec3d point;
+  Vec3d geometric_normal;  // unit length, (p1 - p0) x (p2 - p0) normalised
+  Vec3d p0, p1, p2;
+};
+
+// Origin (float32, world space) for a ray leaving `surface` along `direction`: the point moved
+// along the geometric normal to the side `direction` points to, far enough that no float32 or
+// double intersector can find the triangle it left at t >= 0, and rounded away from the surface.
+Vec3f offset_ray_origin(const RayOffset& policy, const SurfacePoint& surface, const Vec3d& direction);
+
+// tfar (world units along a unit direction) for a shadow ray from `origin` to a point light at
+// `light`: the distance, shortened so that a surface the light sits on is not an occluder.
+// Returns <= 0 when the light is closer than that margin (nothing can be in between).
+double shadow_ray_tfar(const RayOffset& policy, const Vec3d& origin, const Vec3d& light);
+
+}  // namespace rt

@@ -1,0 +1,91 @@
+#include "rt/render/ray_offset.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+
+#include <fmt/format.h>
+
+#include "rt/core/error.h"
+
+namespace rt {
+
+namespace {
+
+// Unit roundoff of float32, the precision of Embree's test and of the origin we hand it.
+constexpr double kFloatRoundoff = 0x1p-24;
+
+// Safety factor over the first-order error bound below (covers second-order terms and the
+// different but equally conditioned factorisations of Moller-Trumbore and Embree's Pluecker test).
+constexpr double kSafety = 8.0;
+
+double max_abs_component(const Vec3d& v) { return std::max({std::abs(v.x), std::abs(v.y), std::abs(v.z)}); }
+
+// Rounds each component of `p` to float32, and when rounding moved it against `away` (towards the
+// surface), steps one float further along `away`: the offset survives the conversion.
+Vec3f round_away(const Vec3d& p, const Vec3d& away) {
+  Vec3f result;
+  for (int i = 0; i < 3; ++i) {
+    float f = static_cast<float>(p[i]);
+    if (away[i] > 0.0 && double(f) < p[i]) f = std::nextafter(f, kInfinity);
+    if (away[i] < 0.0 && double(f) > p[i]) f = std::nextafter(f, -kInfinity);
+    result[i] = f;
+  }
+  return result;
+}
+
+}  // namespace
+
+RayOffset parse_ray_offset(std::string_view text) {
+  if (text == "robust") return {};
+  if (text.starts_with("fixed:")) {
+    const std::string number(text.substr(6));
+    char* end = nullptr;
+    const double epsilon = std::strtod(number.c_str(), &end);
+    if (!number.empty() && end == number.c_str() + number.size() && std::isfinite(epsilon) && epsilon > 0.0)
+      return {RayOffset::Mode::fixed, epsilon};
+  }
+  throw InputError(fmt::format("invalid ray offset '{}' (expected robust or fixed:EPS with EPS > 0)", text));
+}
+
+std::string to_string(const RayOffset& offset) {
+  return offset.mode == RayOffset::Mode::robust ? "robust" : fmt::format("fixed:{}", offset.epsilon);
+}
+
+Vec3f offset_ray_origin(const RayOffset& policy, const SurfacePoint& surface, const Vec3d& direction) {
+  const Vec3d& n = surface.geometric_normal;
+  const Vec3d side = glm::dot(n, direction) >= 0.0 ? n : -n;
+  if (policy.mode == RayOffset::Mode::fixed) return Vec3f(surface.point + policy.epsilon * side);
+
+  // A float32 test decides whether the ray meets the triangle it leaves from the sign of
+  //   N = Ng . (p0 - o),  Ng = (p1 - p0) x (p2 - p0),
+  // i.e. from the signed distance of the origin o to the triangle's plane. Its rounding errors,
+  // measured as a distance (dividing by |Ng|), are at most about
+  //   u sqrt(3) |o|_inf        rounding the origin to float32,
+  //   u |p0 - o|               the float32 subtraction p0 - o,
+  //   2 u kappa |p0 - o|       the direction of the float32 cross product Ng, where
+  //                            kappa = |e1||e2| / |e1 x e2| >= 1 grows as the triangle becomes a sliver,
+  //   3 u |p0 - o|             the float32 dot product,
+  // with u = 2^-24 and |p0 - o| <= L, the longest edge, since o sits on the triangle. Our hit
+  // point is interpolated from the vertices in double, so it is on the plane to ~1e-16 relative
+  // and adds nothing comparable (pbrt-v4's OffsetRayOrigin bounds the same quantity for its own
+  // intersector). Moving o off the plane by more than that total, times kSafety, keeps the computed
+  // sign of N right, so the left triangle is never found at t >= 0 again, at any scene scale.
+  const Vec3d e1 = surface.p1 - surface.p0, e2 = surface.p2 - surface.p0, e3 = surface.p2 - surface.p1;
+  const double area2 = glm::length(glm::cross(e1, e2));
+  const double kappa = area2 > 0.0 ? glm::length(e1) * glm::length(e2) / area2 : 1.0;
+  const double longest_edge = std::max({glm::length(e1), glm::length(e2), glm::length(e3)});
+  const double distance = kSafety * kFloatRoundoff *
+                          (std::sqrt(3.0) * max_abs_component(surface.point) + (4.0 + 2.0 * kappa) * longest_edge);
+  return round_away(surface.point + distance * side, side);
+}
+
+double shadow_ray_tfar(const RayOffset& policy, const Vec3d& origin, const Vec3d& light) {
+  const double distance = glm::length(light - origin);
+  if (policy.mode == RayOffset::Mode::fixed) return distance - policy.epsilon;
+  // A surface through the light point is met at t = distance up to the float32 error of t, which is
+  // relative to the coordinates involved; stop short by the same kind of bound as above.
+  return distance - kSafety * kFloatRoundoff * (std::sqrt(3.0) * max_abs_component(light) + 4.0 * distance);
+}
+
+}  // namespace rt
