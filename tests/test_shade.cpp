@@ -343,7 +343,9 @@ TEST_CASE("a mirror alone reflects the background once", "[shade]") {
 TEST_CASE("offset_ray_origin moves off the surface to the side of the direction", "[shade]") {
   const rt::RayOffset policy = GENERATE(rt::RayOffset{}, rt::parse_ray_offset("fixed:1e-3"));
   INFO("ray offset " << rt::to_string(policy));
-  const rt::SurfacePoint surface{{0.3, 0.2, 0.0}, {0.0, 0.0, 1.0}, {0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  const rt::SurfacePoint surface = rt::make_surface_point({0, 0, 0}, {1, 0, 0}, {0, 1, 0}, 0.3, 0.2);
+  REQUIRE(surface.point == Vec3d(0.3, 0.2, 0.0));
+  REQUIRE(surface.geometric_normal == Vec3d(0.0, 0.0, 1.0));
   const Vec3f above = rt::offset_ray_origin(policy, surface, {0.0, 1.0, 1.0});
   const Vec3f below = rt::offset_ray_origin(policy, surface, {0.0, 1.0, -1.0});
   CHECK(above.x == 0.3f);

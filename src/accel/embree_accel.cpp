@@ -52,31 +52,31 @@ RTCBuildQuality to_embree(EmbreeQuality quality) {
   return RTC_BUILD_QUALITY_MEDIUM;
 }
 
-// Context of the tie-resolving query. Embree passes our RTCIntersectContext pointer to the
-// filter, so extra fields after it travel along (the pattern of Embree's own tutorials).
-struct TieContext {
+// Intersection context that orders hits by (t, primitive index). Embree passes our
+// RTCIntersectContext pointer to the filter, so fields after it travel along (the pattern of
+// Embree's own tutorials).
+struct OrderedHitContext {
   RTCIntersectContext embree;
-  float t;               // the closest hit's t, as Embree computed it
-  unsigned lowest_prim;  // lowest primitive index seen with exactly that t, and its barycentrics
-  float u, v;
+  float best_t;         // t of the hit accepted so far (the ray's tfar until one is)
+  unsigned best_prim;   // its primitive index; RTC_INVALID_GEOMETRY_ID before any hit
 };
 
-// Collects every candidate whose computed t equals the closest hit's, and rejects all of them so
-// that traversal goes on through the whole (tiny) interval. Embree has set the ray's tfar to the
-// candidate's t before calling the filter.
-void collect_ties(const RTCFilterFunctionNArguments* args) {
-  auto* context = reinterpret_cast<TieContext*>(args->context);
+// Embree offers every candidate with t <= the current tfar to the filter, one after another, also
+// candidates with the same t as the hit already accepted (it sets the ray's tfar to the
+// candidate's t before the call). Accepting only strictly closer hits, or equally close ones with a
+// lower index, makes the closest hit independent of BVH layout and traversal order.
+void order_hits(const RTCFilterFunctionNArguments* args) {
+  auto* context = reinterpret_cast<OrderedHitContext*>(args->context);
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] == 0) continue;
-    if (RTCRayN_tfar(args->ray, args->N, i) == context->t) {
-      const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
-      if (prim < context->lowest_prim) {
-        context->lowest_prim = prim;
-        context->u = RTCHitN_u(args->hit, args->N, i);
-        context->v = RTCHitN_v(args->hit, args->N, i);
-      }
+    const float t = RTCRayN_tfar(args->ray, args->N, i);
+    const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
+    if (t < context->best_t || (t == context->best_t && prim < context->best_prim)) {
+      context->best_t = t;
+      context->best_prim = prim;
+    } else {
+      args->valid[i] = 0;
     }
-    args->valid[i] = 0;
   }
 }
 
@@ -113,7 +113,7 @@ EmbreeAccel::EmbreeAccel(const FlatScene& flat, const AccelOptions& options) : i
   rtcSetDeviceErrorFunction(impl_->device, &Impl::on_error, impl_.get());
 
   impl_->scene = rtcNewScene(impl_->device);
-  // Context filters are enabled for the tie-resolving query only; ordinary queries pass none.
+  // The context filter orders closest hits; occlusion queries pass none.
   rtcSetSceneFlags(impl_->scene, static_cast<RTCSceneFlags>(
                                      RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION |
                                      (options.embree_robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE)));
@@ -138,34 +138,19 @@ EmbreeAccel::EmbreeAccel(const FlatScene& flat, const AccelOptions& options) : i
 EmbreeAccel::~EmbreeAccel() = default;
 
 Hit EmbreeAccel::intersect(const Ray& ray) const {
-  RTCIntersectContext context;
-  rtcInitIntersectContext(&context);
+  OrderedHitContext context;
+  rtcInitIntersectContext(&context.embree);
+  context.embree.filter = &order_hits;
+  context.best_t = ray.tfar;
+  context.best_prim = RTC_INVALID_GEOMETRY_ID;
   RTCRayHit rayhit;
   fill_ray(ray, rayhit.ray);
   rayhit.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rayhit.hit.primID = RTC_INVALID_GEOMETRY_ID;
   rayhit.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-  rtcIntersect1(impl_->scene, &context, &rayhit);
+  rtcIntersect1(impl_->scene, &context.embree, &rayhit);
   if (rayhit.hit.geomID == RTC_INVALID_GEOMETRY_ID) return Hit{};
-  Hit hit{rayhit.ray.tfar, rayhit.hit.u, rayhit.hit.v, rayhit.hit.primID};
-
-  // Tie resolution. Embree accepts a candidate when its scaled t lies in [tnear, tfar]; the
-  // interval is widened by a few ulps so that rounding in that test cannot drop a triangle whose
-  // t (computed the same way as before) equals hit.t exactly. The filter decides by exact equality.
-  TieContext ties;
-  rtcInitIntersectContext(&ties.embree);
-  ties.embree.filter = &collect_ties;
-  ties.t = hit.t;
-  ties.lowest_prim = hit.triangle;
-  RTCRayHit probe;
-  fill_ray(ray, probe.ray);
-  probe.ray.tnear = std::nextafter(std::nextafter(hit.t, 0.0f), 0.0f);
-  probe.ray.tfar = std::nextafter(std::nextafter(hit.t, kInfinity), kInfinity);
-  probe.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-  probe.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-  rtcIntersect1(impl_->scene, &ties.embree, &probe);
-  if (ties.lowest_prim != hit.triangle) hit = Hit{hit.t, ties.u, ties.v, ties.lowest_prim};
-  return hit;
+  return Hit{rayhit.ray.tfar, rayhit.hit.u, rayhit.hit.v, rayhit.hit.primID};
 }
 
 bool EmbreeAccel::occluded(const Ray& ray) const {

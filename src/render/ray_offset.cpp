@@ -52,32 +52,40 @@ std::string to_string(const RayOffset& offset) {
   return offset.mode == RayOffset::Mode::robust ? "robust" : fmt::format("fixed:{}", offset.epsilon);
 }
 
-Vec3f offset_ray_origin(const RayOffset& policy, const SurfacePoint& surface, const Vec3d& direction) {
-  const Vec3d& n = surface.geometric_normal;
-  const Vec3d side = glm::dot(n, direction) >= 0.0 ? n : -n;
-  if (policy.mode == RayOffset::Mode::fixed) return Vec3f(surface.point + policy.epsilon * side);
+SurfacePoint make_surface_point(const Vec3d& p0, const Vec3d& p1, const Vec3d& p2, double b1, double b2) {
+  SurfacePoint surface;
+  surface.point = (1.0 - b1 - b2) * p0 + b1 * p1 + b2 * p2;
+  const Vec3d e1 = p1 - p0, e2 = p2 - p0, e3 = p2 - p1;
+  const Vec3d cross = glm::cross(e1, e2);
+  const double area2 = glm::length(cross);
+  surface.geometric_normal = area2 > 0.0 ? cross / area2 : Vec3d(0.0);
 
-  // A float32 test decides whether the ray meets the triangle it leaves from the sign of
+  // A float32 test decides whether a ray from o meets the triangle it leaves from the sign of
   //   N = Ng . (p0 - o),  Ng = (p1 - p0) x (p2 - p0),
-  // i.e. from the signed distance of the origin o to the triangle's plane. Its rounding errors,
-  // measured as a distance (dividing by |Ng|), are at most about
+  // i.e. from the signed distance of o to the triangle's plane. Its rounding errors, measured as a
+  // distance (divided by |Ng|), are at most about
   //   u sqrt(3) |o|_inf        rounding the origin to float32,
   //   u |p0 - o|               the float32 subtraction p0 - o,
   //   2 u kappa |p0 - o|       the direction of the float32 cross product Ng, where
   //                            kappa = |e1||e2| / |e1 x e2| >= 1 grows as the triangle becomes a sliver,
   //   3 u |p0 - o|             the float32 dot product,
-  // with u = 2^-24 and |p0 - o| <= L, the longest edge, since o sits on the triangle. Our hit
-  // point is interpolated from the vertices in double, so it is on the plane to ~1e-16 relative
-  // and adds nothing comparable (pbrt-v4's OffsetRayOrigin bounds the same quantity for its own
+  // with u = 2^-24 and |p0 - o| <= L, the longest edge, since o sits on the triangle. Our point is
+  // interpolated from the vertices in double, so it is on the plane to ~1e-16 relative and adds
+  // nothing comparable (pbrt-v4's OffsetRayOrigin bounds the same quantity for its own
   // intersector). Moving o off the plane by more than that total, times kSafety, keeps the computed
-  // sign of N right, so the left triangle is never found at t >= 0 again, at any scene scale.
-  const Vec3d e1 = surface.p1 - surface.p0, e2 = surface.p2 - surface.p0, e3 = surface.p2 - surface.p1;
-  const double area2 = glm::length(glm::cross(e1, e2));
+  // sign of N right, so the triangle left is never found at t >= 0 again, at any scene scale.
   const double kappa = area2 > 0.0 ? glm::length(e1) * glm::length(e2) / area2 : 1.0;
   const double longest_edge = std::max({glm::length(e1), glm::length(e2), glm::length(e3)});
-  const double distance = kSafety * kFloatRoundoff *
-                          (std::sqrt(3.0) * max_abs_component(surface.point) + (4.0 + 2.0 * kappa) * longest_edge);
-  return round_away(surface.point + distance * side, side);
+  surface.error_bound = kSafety * kFloatRoundoff *
+                        (std::sqrt(3.0) * max_abs_component(surface.point) + (4.0 + 2.0 * kappa) * longest_edge);
+  return surface;
+}
+
+Vec3f offset_ray_origin(const RayOffset& policy, const SurfacePoint& surface, const Vec3d& direction) {
+  const Vec3d& n = surface.geometric_normal;
+  const Vec3d side = glm::dot(n, direction) >= 0.0 ? n : -n;
+  if (policy.mode == RayOffset::Mode::fixed) return Vec3f(surface.point + policy.epsilon * side);
+  return round_away(surface.point + surface.error_bound * side, side);
 }
 
 double shadow_ray_tfar(const RayOffset& policy, const Vec3d& origin, const Vec3d& light) {

@@ -23,7 +23,7 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
   const Vec3u tri = flat.triangles[hit.triangle];
   const Vec3d p0(flat.positions[tri.x]), p1(flat.positions[tri.y]), p2(flat.positions[tri.z]);
   const double b1 = hit.u, b2 = hit.v, b0 = 1.0 - b1 - b2;
-  const SurfacePoint surface{b0 * p0 + b1 * p1 + b2 * p2, glm::normalize(glm::cross(p1 - p0, p2 - p0)), p0, p1, p2};
+  const SurfacePoint surface = make_surface_point(p0, p1, p2, b1, b2);
   const Vec3d& point = surface.point;
   const Vec3d normal = glm::normalize(b0 * Vec3d(flat.normals[tri.x]) + b1 * Vec3d(flat.normals[tri.y]) +
                                       b2 * Vec3d(flat.normals[tri.z]));

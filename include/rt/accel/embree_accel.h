@@ -15,8 +15,7 @@ namespace rt {
 //
 // Embree itself does not say which of several triangles hit at exactly the same t it reports
 // (that depends on the BVH layout). intersect() makes it deterministic, lowest index first like
-// the reference: after the closest hit at t, a second query restricted to a few ulps around t
-// enumerates every triangle whose computed t is exactly the same and keeps the lowest index.
+// the reference, with an intersection filter that orders candidate hits by (t, index).
 class EmbreeAccel final : public Accel {
  public:
   EmbreeAccel(const FlatScene& scene, const AccelOptions& options);

@@ -21,12 +21,19 @@ struct RayOffset {
 RayOffset parse_ray_offset(std::string_view text);
 std::string to_string(const RayOffset& offset);
 
-// The surface a secondary ray leaves: a point on triangle (p0, p1, p2), world space, double.
+// The surface a secondary ray leaves: a point on a triangle with what offsetting needs, computed
+// once per hit and shared by all rays spawned there. World space, double.
 struct SurfacePoint {
-  Vec3d point;
-  Vec3d geometric_normal;  // unit length, (p1 - p0) x (p2 - p0) normalised
-  Vec3d p0, p1, p2;
+  Vec3d point;             // (1 - b1 - b2) p0 + b1 p1 + b2 p2: on the triangle up to ~1e-16 relative
+  Vec3d geometric_normal;  // unit length, along (p1 - p0) x (p2 - p0)
+  double error_bound = 0;  // world units; see make_surface_point
 };
+
+// The point with barycentrics (b1, b2) on triangle (p0, p1, p2), its geometric normal, and a bound
+// on how far off the triangle's plane rounding can make a float32 ray/triangle test believe a ray
+// origin near that point is (see the derivation in ray_offset.cpp). A zero-area triangle gets a
+// zero normal.
+SurfacePoint make_surface_point(const Vec3d& p0, const Vec3d& p1, const Vec3d& p2, double b1, double b2);
 
 // Origin (float32, world space) for a ray leaving `surface` along `direction`: the point moved
 // along the geometric normal to the side `direction` points to, far enough that no float32 or
