@@ -61,19 +61,24 @@ struct OrderedHitContext {
   unsigned best_prim;   // its primitive index; RTC_INVALID_GEOMETRY_ID before any hit
 };
 
-// Embree offers every candidate with t <= the current tfar to the filter, one after another, also
-// candidates with the same t as the hit already accepted (it sets the ray's tfar to the
-// candidate's t before the call). Accepting only strictly closer hits, or equally close ones with a
-// lower index, makes the closest hit independent of BVH layout and traversal order.
+// Embree offers candidates to the filter one after another, having set the ray's tfar to the
+// candidate's t. Accepting only strictly closer hits, or equally close ones with a lower index,
+// makes the closest hit independent of BVH layout and traversal order. One catch: Embree's depth
+// test for later candidates is T <= |den| * tfar on unnormalised values, which rounding can fail
+// for a candidate whose t = T / |den| equals tfar exactly. So on acceptance tfar is widened by
+// 2^-20 relative (~16 ulps, far more than that rounding); the filter, not the depth test, then
+// decides between candidates by exact comparison of t, and intersect() reports best_t.
 void order_hits(const RTCFilterFunctionNArguments* args) {
   auto* context = reinterpret_cast<OrderedHitContext*>(args->context);
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] == 0) continue;
-    const float t = RTCRayN_tfar(args->ray, args->N, i);
+    float& tfar = RTCRayN_tfar(args->ray, args->N, i);
+    const float t = tfar;
     const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
     if (t < context->best_t || (t == context->best_t && prim < context->best_prim)) {
       context->best_t = t;
       context->best_prim = prim;
+      tfar = t + std::abs(t) * 0x1p-20f;
     } else {
       args->valid[i] = 0;
     }
@@ -150,7 +155,7 @@ Hit EmbreeAccel::intersect(const Ray& ray) const {
   rayhit.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
   rtcIntersect1(impl_->scene, &context.embree, &rayhit);
   if (rayhit.hit.geomID == RTC_INVALID_GEOMETRY_ID) return Hit{};
-  return Hit{rayhit.ray.tfar, rayhit.hit.u, rayhit.hit.v, rayhit.hit.primID};
+  return Hit{context.best_t, rayhit.hit.u, rayhit.hit.v, rayhit.hit.primID};
 }
 
 bool EmbreeAccel::occluded(const Ray& ray) const {
