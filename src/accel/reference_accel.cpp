@@ -47,6 +47,10 @@ bool intersect_triangle_barycentric(const Vec3d& origin, const Vec3d& direction,
 
 bool intersect_triangle_watertight(const Vec3d& origin, const Vec3d& direction, double tnear, double tfar,
                                    const Vec3d& p0, const Vec3d& p1, const Vec3d& p2, TriangleHitD& hit) {
+  // 0. Degenerate triangles first, in the triangle's own space: after the shear below, rounding can
+  //    make collinear or repeated vertices look like a sliver with a small non-zero area.
+  if (glm::cross(p1 - p0, p2 - p0) == Vec3d(0.0)) return false;
+
   // 1. Ray-centred frame: translate by the origin, permute so the direction's largest component
   //    is z (kz), keeping the winding of (kx, ky, kz) cyclic.
   const int kz = max_dimension(glm::abs(direction));
