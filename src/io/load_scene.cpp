@@ -13,6 +13,7 @@
 
 #include "rt/core/error.h"
 #include "rt/io/load_obj.h"
+#include "rt/io/load_test.h"
 #include "rt/scene/shapes.h"
 
 namespace rt {
@@ -446,8 +447,9 @@ Scene load_scene(const std::string& path) {
   std::string ext = fs::path(path).extension().string();
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   if (ext == ".json") return parse_scene_json(read_text_file(path), path);
+  if (ext == ".test") return load_test_scene(path);  // CSE167x ray-tracer scenes, validated
   if (!fs::exists(path)) throw InputError(path, "", "no such file");
-  throw InputError(path, "", fmt::format("unsupported scene format '{}' (supported: .json)", ext));
+  throw InputError(path, "", fmt::format("unsupported scene format '{}' (supported: .json, .test)", ext));
 }
 
 }  // namespace rt
