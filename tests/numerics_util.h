@@ -194,7 +194,9 @@ inline std::size_t zero_area_triangles(const rt::FlatScene& flat) {
 // ---------------------------------------------------------------------------------------------
 // Intersector configurations.
 
-enum class Path { reference, reference_barycentric, embree_robust, embree_default };
+// embree_robust and embree_default use Embree's native triangle test with RTC_SCENE_FLAG_ROBUST on
+// and off; embree_watertight runs the reference's watertight test inside Embree's BVH.
+enum class Path { reference, reference_barycentric, embree_robust, embree_default, embree_watertight };
 
 inline const char* name(Path path) {
   switch (path) {
@@ -202,6 +204,7 @@ inline const char* name(Path path) {
     case Path::reference_barycentric: return "reference-barycentric (seed solve)";
     case Path::embree_robust: return "Embree robust";
     case Path::embree_default: return "Embree default (robust off)";
+    case Path::embree_watertight: return "Embree + watertight kernel";
   }
   return "?";
 }
@@ -214,6 +217,9 @@ inline std::unique_ptr<rt::Accel> build(Path path, const rt::FlatScene& flat) {
     case Path::embree_robust: options.embree_robust = true; return rt::build_accel(rt::AccelKind::embree, flat, options);
     case Path::embree_default:
       options.embree_robust = false;
+      return rt::build_accel(rt::AccelKind::embree, flat, options);
+    case Path::embree_watertight:
+      options.embree_kernel = rt::EmbreeKernel::watertight;
       return rt::build_accel(rt::AccelKind::embree, flat, options);
   }
   return nullptr;

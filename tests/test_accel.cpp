@@ -155,12 +155,14 @@ TEST_CASE("every intersector breaks exact ties in t towards the lowest index", "
   const rt::AccelKind kind =
       GENERATE(rt::AccelKind::embree, rt::AccelKind::reference, rt::AccelKind::reference_barycentric);
   const bool robust = GENERATE(true, false);
-  INFO("accel " << rt::to_string(kind) << ", embree robust " << robust);
+  const rt::EmbreeKernel kernel = GENERATE(rt::EmbreeKernel::native, rt::EmbreeKernel::watertight);
+  INFO("accel " << rt::to_string(kind) << ", embree robust " << robust << ", kernel " << rt::to_string(kernel));
   // Three identical triangles compute bit-identical t; more copies spread them over BVH leaves.
   const std::size_t copies = GENERATE(3, 40);
   const rt::FlatScene flat = flat_triangles(std::vector<std::array<Vec3f, 3>>(copies, kUnitTriangle));
   rt::AccelOptions options;
   options.embree_robust = robust;
+  options.embree_kernel = kernel;
   const std::unique_ptr<rt::Accel> accel = rt::build_accel(kind, flat, options);
   for (const Vec3f& origin : {Vec3f(0.25f, 0.25f, 1.0f), Vec3f(0.1f, 0.7f, -3.0f), Vec3f(0.6f, 0.1f, 2.0f)}) {
     const rt::Hit hit = accel->intersect(make_ray(origin, {0, 0, origin.z > 0 ? -1.0f : 1.0f}));
@@ -175,11 +177,14 @@ TEST_CASE("every intersector breaks exact ties in t towards the lowest index", "
 TEST_CASE("intersectors over an empty scene miss everything", "[accel]") {
   const rt::AccelKind kind =
       GENERATE(rt::AccelKind::embree, rt::AccelKind::reference, rt::AccelKind::reference_barycentric);
-  INFO("accel " << rt::to_string(kind));
+  const rt::EmbreeKernel kernel = GENERATE(rt::EmbreeKernel::native, rt::EmbreeKernel::watertight);
+  INFO("accel " << rt::to_string(kind) << ", kernel " << rt::to_string(kernel));
   rt::Scene scene = rt_test::make_scene({});  // a root node without models
   const rt::FlatScene flat = rt::flatten_scene(scene);
   REQUIRE(flat.triangle_count() == 0);
-  const std::unique_ptr<rt::Accel> accel = rt::build_accel(kind, flat);
+  rt::AccelOptions options;
+  options.embree_kernel = kernel;
+  const std::unique_ptr<rt::Accel> accel = rt::build_accel(kind, flat, options);
   for (const Vec3f& direction : {Vec3f(0, 0, -1), Vec3f(1, 2, 3), Vec3f(-1, 0, 0)}) {
     const rt::Ray ray = make_ray({0, 0, 0}, direction);
     CHECK_FALSE(accel->intersect(ray).found());
@@ -197,6 +202,9 @@ TEST_CASE("accel kind names round-trip", "[accel]") {
   CHECK(rt::parse_embree_quality("low") == rt::EmbreeQuality::low);
   CHECK(rt::parse_embree_quality("high") == rt::EmbreeQuality::high);
   CHECK_THROWS_AS(rt::parse_embree_quality("best"), rt::InputError);
+  CHECK(rt::parse_embree_kernel("watertight") == rt::EmbreeKernel::watertight);
+  CHECK(rt::to_string(rt::EmbreeKernel::native) == "native");
+  CHECK_THROWS_AS(rt::parse_embree_kernel("exact"), rt::InputError);
   CHECK_THROWS_AS(rt::parse_accel_kind("bogus"), rt::InputError);
   CHECK_THROWS_AS(rt::parse_accel_kind(""), rt::InputError);
 }

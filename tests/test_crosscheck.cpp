@@ -1,6 +1,7 @@
 // The Embree backend against the double-precision watertight reference on many random rays, over
 // several meshes (also far from the origin and at small scale), for Embree robust (the default,
-// asserted) and Embree with robust mode off (printed).
+// asserted), Embree with robust mode off (printed) and Embree with the watertight kernel (which
+// runs the reference's own test inside Embree's BVH, so it must return bit-identical hits).
 //
 // Criteria per ray: same hit or miss, same triangle, t within 1e-5 relative, barycentrics within
 // 1e-4. A ray whose hit lies within 1e-6 (in barycentric terms) of a triangle edge, for either
@@ -57,9 +58,11 @@ constexpr double kBarycentricTolerance = 1e-4;
 
 struct Counts {
   std::size_t rays = 0, hits = 0, agreements = 0, ambiguous = 0, ill_conditioned = 0, failures = 0;
+  std::size_t identical = 0;  // same Hit, bit for bit (t, u, v, triangle), and same occluded()
   std::vector<std::string> examples;  // the first few failures and ill-conditioned rays, described
   Counts& operator+=(const Counts& o) {
     rays += o.rays;
+    identical += o.identical;
     hits += o.hits;
     agreements += o.agreements;
     ambiguous += o.ambiguous;
@@ -73,7 +76,8 @@ struct Counts {
 std::string describe(const Counts& c) {
   std::ostringstream out;
   out << c.rays << " rays (" << c.hits << " hits), " << c.agreements << " agreements, " << c.ambiguous
-      << " ambiguous, " << c.ill_conditioned << " ill-conditioned, " << c.failures << " failures";
+      << " ambiguous, " << c.ill_conditioned << " ill-conditioned, " << c.failures << " failures, " << c.identical
+      << " bit-identical";
   return out.str();
 }
 
@@ -177,13 +181,19 @@ rt::FlatScene transformed_scene() {
 // Casts `ray_count` random rays at `flat` from outside its bounding sphere (radius R): origins
 // at distance 1.5R..3R from the centre, 90% aimed at a uniform point of the bounding box, 10%
 // in a uniform random direction; direction lengths vary in [0.5, 2]. Classifies Embree robust
-// (result[0]) and Embree with robust mode off (result[1]) against the reference. Rays are drawn in
-// 8 independently seeded chunks run in parallel.
-std::array<Counts, 2> crosscheck(const rt::FlatScene& flat, std::size_t ray_count, std::uint32_t seed) {
-  rt::AccelOptions robust_off;
+// (result[0]), Embree with robust mode off (result[1]) and Embree with the watertight kernel
+// (result[2]) against the reference. Rays are drawn in 8 independently seeded chunks run in parallel.
+constexpr int kEmbreeConfigs = 3;
+const char* const kEmbreeConfigNames[kEmbreeConfigs] = {"robust", "robust off", "watertight kernel"};
+using ConfigCounts = std::array<Counts, kEmbreeConfigs>;
+
+ConfigCounts crosscheck(const rt::FlatScene& flat, std::size_t ray_count, std::uint32_t seed) {
+  rt::AccelOptions robust_off, watertight;
   robust_off.embree_robust = false;
-  const std::unique_ptr<rt::Accel> embrees[2] = {rt::build_accel(rt::AccelKind::embree, flat),
-                                                 rt::build_accel(rt::AccelKind::embree, flat, robust_off)};
+  watertight.embree_kernel = rt::EmbreeKernel::watertight;
+  const std::unique_ptr<rt::Accel> embrees[kEmbreeConfigs] = {
+      rt::build_accel(rt::AccelKind::embree, flat), rt::build_accel(rt::AccelKind::embree, flat, robust_off),
+      rt::build_accel(rt::AccelKind::embree, flat, watertight)};
   const std::unique_ptr<rt::Accel> reference = rt::build_accel(rt::AccelKind::reference, flat);
 
   Vec3d lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
@@ -195,10 +205,9 @@ std::array<Counts, 2> crosscheck(const rt::FlatScene& flat, std::size_t ray_coun
   const double radius = 0.5 * glm::length(hi - lo);
 
   struct Pair {
-    std::array<Counts, 2> c;
+    ConfigCounts c;
     Pair& operator+=(const Pair& o) {
-      c[0] += o.c[0];
-      c[1] += o.c[1];
+      for (int k = 0; k < kEmbreeConfigs; ++k) c[k] += o.c[k];
       return *this;
     }
   };
@@ -230,14 +239,17 @@ std::array<Counts, 2> crosscheck(const rt::FlatScene& flat, std::size_t ray_coun
 
       const rt::Hit r = reference->intersect(ray);
       const bool r_occluded = reference->occluded(ray);
-      for (int k = 0; k < 2; ++k) {
+      for (int k = 0; k < kEmbreeConfigs; ++k) {
         Counts& counts = pair.c[k];
         const rt::Accel& embree = *embrees[k];
         const rt::Hit e = embree.intersect(ray);
+        const bool e_occluded = embree.occluded(ray);
         ++counts.rays;
         if (r.found()) ++counts.hits;
+        if (e.t == r.t && e.u == r.u && e.v == r.v && e.triangle == r.triangle && e_occluded == r_occluded)
+          ++counts.identical;
 
-        bool agree = e.found() == r.found() && embree.occluded(ray) == e.found() && r_occluded == r.found();
+        bool agree = e.found() == r.found() && e_occluded == e.found() && r_occluded == r.found();
         if (agree && r.found()) {
           agree = e.triangle == r.triangle &&
                   std::abs(double(e.t) - double(r.t)) <= kTRelative * std::abs(double(r.t)) &&
@@ -271,7 +283,7 @@ std::array<Counts, 2> crosscheck(const rt::FlatScene& flat, std::size_t ray_coun
 
 // The meshes: the original four, plus the closed meshes of the watertightness test where float32
 // matters most (far from the origin, and at millimetre scale).
-std::array<Counts, 2> run_all(std::size_t rays_per_mesh, const char* run) {
+ConfigCounts run_all(std::size_t rays_per_mesh, const char* run) {
   struct Case {
     const char* name;
     rt::FlatScene flat;
@@ -289,28 +301,27 @@ std::array<Counts, 2> run_all(std::size_t rays_per_mesh, const char* run) {
        rt_numerics::place(rt_numerics::cube_grid(12), Vec3d(148376.0, 1234.0, -223423.0), 10.0), 7u}};
   std::cout << "\n### Cross-check against the reference (" << run << ")\n\n"
             << "| mesh | triangles | Embree | rays | reference hits | agreements | near an edge (< 1e-6) "
-               "| ill-conditioned (within the float32 bound) | unexplained |\n"
-            << "|---|---|---|---|---|---|---|---|---|\n";
-  std::array<Counts, 2> total;
+               "| ill-conditioned (within the float32 bound) | unexplained | bit-identical to the reference |\n"
+            << "|---|---|---|---|---|---|---|---|---|---|\n";
+  ConfigCounts total;
+  auto print_row = [](const std::string& mesh, const std::string& triangles, int k, const Counts& n) {
+    std::cout << "| " << mesh << " | " << triangles << " | " << kEmbreeConfigNames[k] << " | " << n.rays << " | "
+              << n.hits << " | " << n.agreements << " | " << n.ambiguous << " | " << n.ill_conditioned << " | "
+              << n.failures << " | " << n.identical << " |\n";
+  };
   for (const Case& c : cases) {
-    const std::array<Counts, 2> counts = crosscheck(c.flat, rays_per_mesh, c.seed);
-    for (int k = 0; k < 2; ++k) {
-      const Counts& n = counts[k];
-      std::cout << "| " << c.name << " | " << c.flat.triangle_count() << " | " << (k == 0 ? "robust" : "robust off")
-                << " | " << n.rays << " | " << n.hits << " | " << n.agreements << " | " << n.ambiguous << " | "
-                << n.ill_conditioned << " | " << n.failures << " |\n";
-      total[k] += n;
+    const ConfigCounts counts = crosscheck(c.flat, rays_per_mesh, c.seed);
+    for (int k = 0; k < kEmbreeConfigs; ++k) {
+      print_row(c.name, std::to_string(c.flat.triangle_count()), k, counts[k]);
+      total[k] += counts[k];
     }
     CHECK(counts[0].hits > counts[0].rays / 4);  // the rays do test hits, not only misses
   }
-  for (int k = 0; k < 2; ++k)
-    std::cout << "| **total** | | " << (k == 0 ? "robust" : "robust off") << " | " << total[k].rays << " | "
-              << total[k].hits << " | " << total[k].agreements << " | " << total[k].ambiguous << " | "
-              << total[k].ill_conditioned << " | " << total[k].failures << " |\n";
+  for (int k = 0; k < kEmbreeConfigs; ++k) print_row("**total**", "", k, total[k]);
   std::cout << std::endl;
-  for (int k = 0; k < 2; ++k)
+  for (int k = 0; k < kEmbreeConfigs; ++k)
     for (const std::string& example : total[k].examples)
-      std::cout << "  " << (k == 0 ? "robust: " : "robust off: ") << example << "\n";
+      std::cout << "  " << kEmbreeConfigNames[k] << ": " << example << "\n";
   WARN("crosscheck total (Embree robust): " << describe(total[0]));
   return total;
 }
@@ -326,9 +337,13 @@ void check_total(const Counts& total, std::size_t rays) {
 }  // namespace
 
 TEST_CASE("Embree agrees with the reference on 105k random rays", "[crosscheck][numerics]") {
-  check_total(run_all(15'000, "default suite")[0], 105'000);
+  const ConfigCounts total = run_all(15'000, "default suite");
+  check_total(total[0], 105'000);
+  CHECK(total[2].identical == total[2].rays);  // the watertight kernel is the reference's test
 }
 
 TEST_CASE("Embree agrees with the reference on 1.05M random rays", "[crosscheck][numerics][.slow]") {
-  check_total(run_all(150'000, "slow run")[0], 1'050'000);
+  const ConfigCounts total = run_all(150'000, "slow run");
+  check_total(total[0], 1'050'000);
+  CHECK(total[2].identical == total[2].rays);
 }

@@ -48,4 +48,18 @@ EmbreeQuality parse_embree_quality(std::string_view name) {
   throw InputError("unknown Embree build quality '" + std::string(name) + "' (expected low, medium or high)");
 }
 
+std::string_view to_string(EmbreeKernel kernel) {
+  switch (kernel) {
+    case EmbreeKernel::native: return "native";
+    case EmbreeKernel::watertight: return "watertight";
+  }
+  return "?";
+}
+
+EmbreeKernel parse_embree_kernel(std::string_view name) {
+  for (EmbreeKernel kernel : {EmbreeKernel::native, EmbreeKernel::watertight})
+    if (name == to_string(kernel)) return kernel;
+  throw InputError("unknown Embree kernel '" + std::string(name) + "' (expected native or watertight)");
+}
+
 }  // namespace rt

@@ -1,5 +1,6 @@
 #include "rt/accel/embree_accel.h"
 
+#include <algorithm>
 #include <cmath>
 #include <mutex>
 #include <string>
@@ -7,6 +8,7 @@
 #include <embree3/rtcore.h>
 #include <fmt/format.h>
 
+#include "rt/accel/reference_accel.h"
 #include "rt/core/error.h"
 
 namespace rt {
@@ -85,11 +87,110 @@ void order_hits(const RTCFilterFunctionNArguments* args) {
   }
 }
 
+// ---------------------------------------------------------------------------------------------
+// The watertight kernel: every triangle is a primitive of one Embree user geometry whose
+// callbacks run intersect_triangle_watertight in double, on the same float32 vertices.
+
+// What the user-geometry callbacks read: the world-space float32 buffers and the box padding.
+struct WatertightTriangles {
+  const FlatScene* flat = nullptr;
+  float box_padding = 0.0f;  // world-space units, added on every side of each triangle's box
+};
+
+// Embree traverses user geometry with its fast, non-conservative box test (Embree 3.13 compiles
+// BVH4VirtualIntersector1 with robust = false whatever the scene flags say), so a ray through a
+// triangle's vertex or edge can be culled at a box face it only touches. The slab distances that
+// test computes, fl(lower * rdir - fl(org * rdir)) with an approximate reciprocal rdir, are off by
+// at most a few float32 ulps of |lower| + |org| in world units; boxes padded by 2^-18 times the
+// scene's largest coordinate magnitude M absorb that error (with a margin of 4 and more) for every
+// ray whose origin lies within 7 M of the world origin: all secondary rays, and camera rays unless
+// the eye is far outside the scene. The padding only makes boxes overlap slightly more.
+float watertight_box_padding(const FlatScene& flat) {
+  float largest = 0.0f;
+  for (const Vec3f& p : flat.positions)
+    largest = std::max({largest, std::abs(p.x), std::abs(p.y), std::abs(p.z)});
+  return std::max(largest, 1.0f) * 0x1p-18f;
+}
+
+void watertight_bounds(const RTCBoundsFunctionArguments* args) {
+  const auto* triangles = static_cast<const WatertightTriangles*>(args->geometryUserPtr);
+  const FlatScene& flat = *triangles->flat;
+  const Vec3u tri = flat.triangles[args->primID];
+  const Vec3f a = flat.positions[tri.x], b = flat.positions[tri.y], c = flat.positions[tri.z];
+  const Vec3f lower = glm::min(a, glm::min(b, c)) - triangles->box_padding;
+  const Vec3f upper = glm::max(a, glm::max(b, c)) + triangles->box_padding;
+  *args->bounds_o = RTCBounds{lower.x, lower.y, lower.z, 0.0f, upper.x, upper.y, upper.z, 0.0f};
+}
+
+// The closest hit found so far, in double, ordered by (t, primitive index) like the reference.
+struct WatertightHitContext {
+  RTCIntersectContext embree;
+  double best_t;       // the ray's tfar until a hit is accepted
+  unsigned best_prim;  // RTC_INVALID_GEOMETRY_ID before any hit
+  double best_b1, best_b2;
+};
+
+bool intersect_flat_triangle(const FlatScene& flat, unsigned prim, const Vec3d& origin, const Vec3d& direction,
+                             double tnear, double tfar, TriangleHitD& hit) {
+  const Vec3u tri = flat.triangles[prim];
+  return intersect_triangle_watertight(origin, direction, tnear, tfar, Vec3d(flat.positions[tri.x]),
+                                       Vec3d(flat.positions[tri.y]), Vec3d(flat.positions[tri.z]), hit);
+}
+
+void watertight_intersect(const RTCIntersectFunctionNArguments* args) {
+  const auto* triangles = static_cast<const WatertightTriangles*>(args->geometryUserPtr);
+  auto* context = reinterpret_cast<WatertightHitContext*>(args->context);
+  RTCRayN* ray = RTCRayHitN_RayN(args->rayhit, args->N);
+  RTCHitN* hit_out = RTCRayHitN_HitN(args->rayhit, args->N);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] == 0) continue;
+    const Vec3d origin(RTCRayN_org_x(ray, args->N, i), RTCRayN_org_y(ray, args->N, i), RTCRayN_org_z(ray, args->N, i));
+    const Vec3d direction(RTCRayN_dir_x(ray, args->N, i), RTCRayN_dir_y(ray, args->N, i),
+                          RTCRayN_dir_z(ray, args->N, i));
+    TriangleHitD hit;
+    if (!intersect_flat_triangle(*triangles->flat, args->primID, origin, direction, RTCRayN_tnear(ray, args->N, i),
+                                 context->best_t, hit))
+      continue;
+    if (!(hit.t < context->best_t || args->primID < context->best_prim)) continue;
+    context->best_t = hit.t;
+    context->best_prim = args->primID;
+    context->best_b1 = hit.b1;
+    context->best_b2 = hit.b2;
+    // Embree only needs tfar to cull boxes entirely beyond the hit; widened as in order_hits so
+    // an equally close candidate in another leaf still reaches this callback.
+    const auto t = static_cast<float>(hit.t);
+    RTCRayN_tfar(ray, args->N, i) = t + std::abs(t) * 0x1p-20f;
+    RTCHitN_geomID(hit_out, args->N, i) = args->geomID;
+    RTCHitN_primID(hit_out, args->N, i) = args->primID;
+    RTCHitN_instID(hit_out, args->N, i, 0) = args->context->instID[0];
+    RTCHitN_u(hit_out, args->N, i) = static_cast<float>(hit.b1);
+    RTCHitN_v(hit_out, args->N, i) = static_cast<float>(hit.b2);
+  }
+}
+
+void watertight_occluded(const RTCOccludedFunctionNArguments* args) {
+  const auto* triangles = static_cast<const WatertightTriangles*>(args->geometryUserPtr);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] == 0) continue;
+    float& tfar = RTCRayN_tfar(args->ray, args->N, i);
+    const Vec3d origin(RTCRayN_org_x(args->ray, args->N, i), RTCRayN_org_y(args->ray, args->N, i),
+                       RTCRayN_org_z(args->ray, args->N, i));
+    const Vec3d direction(RTCRayN_dir_x(args->ray, args->N, i), RTCRayN_dir_y(args->ray, args->N, i),
+                          RTCRayN_dir_z(args->ray, args->N, i));
+    TriangleHitD hit;
+    if (intersect_flat_triangle(*triangles->flat, args->primID, origin, direction,
+                                RTCRayN_tnear(args->ray, args->N, i), tfar, hit))
+      tfar = -kInfinity;
+  }
+}
+
 }  // namespace
 
 struct EmbreeAccel::Impl {
   RTCDevice device = nullptr;
   RTCScene scene = nullptr;
+  EmbreeKernel kernel = EmbreeKernel::native;
+  WatertightTriangles watertight;
   std::mutex error_mutex;
   std::string first_error;  // recorded by the callback; never thrown across Embree's frames
 
@@ -123,15 +224,27 @@ EmbreeAccel::EmbreeAccel(const FlatScene& flat, const AccelOptions& options) : i
                                      RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION |
                                      (options.embree_robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE)));
   rtcSetSceneBuildQuality(impl_->scene, to_embree(options.embree_quality));
+  impl_->kernel = options.embree_kernel;
   if (flat.triangle_count() > 0) {
-    RTCGeometry geometry = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    RTCGeometry geometry = nullptr;
+    if (options.embree_kernel == EmbreeKernel::native) {
+      geometry = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+      // Shared buffers: Embree reads FlatScene's vectors in place. FlatScene guarantees one spare
+      // Vec3f of capacity past the last vertex for Embree's 16-byte vertex loads.
+      rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, flat.positions.data(), 0,
+                                 sizeof(Vec3f), flat.positions.size());
+      rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, flat.triangles.data(), 0,
+                                 sizeof(Vec3u), flat.triangles.size());
+    } else {
+      impl_->watertight = {&flat, watertight_box_padding(flat)};
+      geometry = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_USER);
+      rtcSetGeometryUserPrimitiveCount(geometry, static_cast<unsigned>(flat.triangle_count()));
+      rtcSetGeometryUserData(geometry, &impl_->watertight);
+      rtcSetGeometryBoundsFunction(geometry, &watertight_bounds, nullptr);
+      rtcSetGeometryIntersectFunction(geometry, &watertight_intersect);
+      rtcSetGeometryOccludedFunction(geometry, &watertight_occluded);
+    }
     rtcSetGeometryBuildQuality(geometry, to_embree(options.embree_quality));
-    // Shared buffers: Embree reads FlatScene's vectors in place. FlatScene guarantees one spare
-    // Vec3f of capacity past the last vertex for Embree's 16-byte vertex loads.
-    rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, flat.positions.data(), 0,
-                               sizeof(Vec3f), flat.positions.size());
-    rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, flat.triangles.data(), 0,
-                               sizeof(Vec3u), flat.triangles.size());
     rtcCommitGeometry(geometry);
     rtcAttachGeometryByID(impl_->scene, geometry, 0);
     rtcReleaseGeometry(geometry);
@@ -143,16 +256,26 @@ EmbreeAccel::EmbreeAccel(const FlatScene& flat, const AccelOptions& options) : i
 EmbreeAccel::~EmbreeAccel() = default;
 
 Hit EmbreeAccel::intersect(const Ray& ray) const {
-  OrderedHitContext context;
-  rtcInitIntersectContext(&context.embree);
-  context.embree.filter = &order_hits;
-  context.best_t = ray.tfar;
-  context.best_prim = RTC_INVALID_GEOMETRY_ID;
   RTCRayHit rayhit;
   fill_ray(ray, rayhit.ray);
   rayhit.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rayhit.hit.primID = RTC_INVALID_GEOMETRY_ID;
   rayhit.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  if (impl_->kernel == EmbreeKernel::watertight) {
+    WatertightHitContext context;
+    rtcInitIntersectContext(&context.embree);
+    context.best_t = ray.tfar;
+    context.best_prim = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(impl_->scene, &context.embree, &rayhit);
+    if (context.best_prim == RTC_INVALID_GEOMETRY_ID) return Hit{};
+    return Hit{static_cast<float>(context.best_t), static_cast<float>(context.best_b1),
+               static_cast<float>(context.best_b2), context.best_prim};
+  }
+  OrderedHitContext context;
+  rtcInitIntersectContext(&context.embree);
+  context.embree.filter = &order_hits;
+  context.best_t = ray.tfar;
+  context.best_prim = RTC_INVALID_GEOMETRY_ID;
   rtcIntersect1(impl_->scene, &context.embree, &rayhit);
   if (rayhit.hit.geomID == RTC_INVALID_GEOMETRY_ID) return Hit{};
   return Hit{context.best_t, rayhit.hit.u, rayhit.hit.v, rayhit.hit.primID};

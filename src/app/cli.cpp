@@ -38,6 +38,7 @@ struct RenderArgs {
   std::string accel = "embree";
   std::string embree_robust = "on";
   std::string embree_quality = "medium";
+  std::string embree_kernel = "native";
   std::string ray_offset = "robust";
   int threads = 0;
   std::string stats_path;
@@ -68,6 +69,7 @@ int run_render(const RenderArgs& args) {
   AccelOptions accel_options;
   accel_options.embree_robust = args.embree_robust == "on";
   accel_options.embree_quality = parse_embree_quality(args.embree_quality);
+  accel_options.embree_kernel = parse_embree_kernel(args.embree_kernel);
   const RayOffset ray_offset = parse_ray_offset(args.ray_offset);
 
   Scene scene = load_scene_or_default(args.scene_path);
@@ -109,7 +111,9 @@ int run_render(const RenderArgs& args) {
     stats["output"] = output;
     stats["accel"] = to_string(accel_kind);
     if (accel_kind == AccelKind::embree)
-      stats["embree"] = {{"robust", accel_options.embree_robust}, {"quality", to_string(accel_options.embree_quality)}};
+      stats["embree"] = {{"robust", accel_options.embree_robust},
+                         {"quality", to_string(accel_options.embree_quality)},
+                         {"kernel", to_string(accel_options.embree_kernel)}};
     stats["ray_offset"] = to_string(ray_offset);
     stats["threads"] = threads;
     stats["image"] = {{"width", scene.settings.width}, {"height", scene.settings.height}};
@@ -199,6 +203,11 @@ int run_cli(int argc, char** argv) {
       ->capture_default_str();
   render->add_option("--embree-quality", render_args.embree_quality, "Embree BVH build quality")
       ->check(CLI::IsMember({"low", "medium", "high"}))
+      ->capture_default_str();
+  render->add_option("--embree-kernel", render_args.embree_kernel,
+                     "Triangle test inside Embree's BVH: native (Embree's, fastest) or watertight (the reference's "
+                     "double-precision watertight test: no ray slips through a closed mesh, slower)")
+      ->check(CLI::IsMember({"native", "watertight"}))
       ->capture_default_str();
   render->add_option("--ray-offset", render_args.ray_offset,
                      "Self-intersection policy of secondary rays: robust (scale-independent error bound) "

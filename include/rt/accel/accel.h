@@ -43,6 +43,14 @@ enum class AccelKind { embree, reference, reference_barycentric };
 
 enum class EmbreeQuality { low, medium, high };
 
+// Which ray/triangle test runs inside Embree's BVH. native: Embree's own triangle intersector
+// (Pluecker in robust mode, Moller-Trumbore otherwise), float32. watertight: the reference's
+// double-precision watertight test (intersect_triangle_watertight) as an Embree user geometry, so
+// the Embree path returns exactly what the reference returns, at the price of speed (measured in
+// docs/performance.md). Embree's native kernels can let a ray aimed exactly at a vertex slip
+// through a closed mesh even in robust mode (docs/robustness.md).
+enum class EmbreeKernel { native, watertight };
+
 // Options for building an Accel; the reference backends ignore the Embree ones.
 struct AccelOptions {
   // RTC_SCENE_FLAG_ROBUST: Embree's watertight (Pluecker) triangle test and conservative box tests.
@@ -50,6 +58,7 @@ struct AccelOptions {
   // docs/robustness.md for the measurements that chose this default).
   bool embree_robust = true;
   EmbreeQuality embree_quality = EmbreeQuality::medium;  // BVH build quality (RTCBuildQuality)
+  EmbreeKernel embree_kernel = EmbreeKernel::native;
 };
 
 // Thread-safe after construction: many threads may query one Accel concurrently.
@@ -71,11 +80,13 @@ class Accel {
 // buffers without copying). Throws RuntimeError if the backend fails.
 std::unique_ptr<Accel> build_accel(AccelKind kind, const FlatScene& scene, const AccelOptions& options = {});
 
-// Names as used on the command line: "embree", "reference", "reference-barycentric"; and
-// "low", "medium", "high". The parse functions throw InputError on anything else.
+// Names as used on the command line: "embree", "reference", "reference-barycentric"; "low",
+// "medium", "high"; "native", "watertight". The parse functions throw InputError on anything else.
 std::string_view to_string(AccelKind kind);
 AccelKind parse_accel_kind(std::string_view name);
 std::string_view to_string(EmbreeQuality quality);
 EmbreeQuality parse_embree_quality(std::string_view name);
+std::string_view to_string(EmbreeKernel kernel);
+EmbreeKernel parse_embree_kernel(std::string_view name);
 
 }  // namespace rt

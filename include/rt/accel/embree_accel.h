@@ -8,14 +8,18 @@
 
 namespace rt {
 
-// One RTCDevice and one RTCScene holding a single triangle geometry whose vertex and index
-// buffers are shared with `scene` (no copies). Closest hit via rtcIntersect1, shadows via
-// rtcOccluded1. Embree's error callback only records; the constructor throws RuntimeError
-// with the recorded message if device creation or the BVH build failed.
+// One RTCDevice and one RTCScene holding a single geometry over `scene`'s triangles. With the
+// native kernel it is an Embree triangle geometry sharing FlatScene's vertex and index buffers (no
+// copies); with the watertight kernel it is a user geometry whose callbacks run the reference's
+// double-precision watertight test on the same vertices, so hits equal the reference's exactly.
+// Closest hit via rtcIntersect1, shadows via rtcOccluded1. Embree's error callback only records;
+// the constructor throws RuntimeError with the recorded message if device creation or the BVH
+// build failed.
 //
 // Embree itself does not say which of several triangles hit at exactly the same t it reports
 // (that depends on the BVH layout). intersect() makes it deterministic, lowest index first like
-// the reference, with an intersection filter that orders candidate hits by (t, index).
+// the reference: an intersection filter (native) or the user callback (watertight) orders
+// candidate hits by (t, index).
 class EmbreeAccel final : public Accel {
  public:
   EmbreeAccel(const FlatScene& scene, const AccelOptions& options);
