@@ -54,7 +54,7 @@ TEST_CASE("intersectors hit a triangle at the hand-computed t, u, v", "[accel]")
     // Point = (1 - u - v) p0 + u p1 + v p2 = (u, v, 0): u = v = 0.25, t = 1.
     const rt::Hit hit = accel->intersect(make_ray({0.25f, 0.25f, 1.0f}, {0.0f, 0.0f, -1.0f}));
     REQUIRE(hit.found());
-    CHECK(hit.triangle == 0);
+    CHECK(hit.primitive == 0);
     CHECK(hit.t == Approx(1.0f).epsilon(1e-6));
     CHECK(hit.u == Approx(0.25f).epsilon(1e-6));
     CHECK(hit.v == Approx(0.25f).epsilon(1e-6));
@@ -83,7 +83,7 @@ TEST_CASE("intersectors hit a triangle at the hand-computed t, u, v", "[accel]")
                                make_ray({0.25f, 0.25f, 1.0f}, {1, 0, 0})}) {  // parallel, above
       const rt::Hit hit = accel->intersect(ray);
       CHECK_FALSE(hit.found());
-      CHECK(hit.triangle == rt::kNoTriangle);
+      CHECK(hit.primitive == rt::kNoPrimitive);
       CHECK(hit.t == rt::kInfinity);
       CHECK_FALSE(accel->occluded(ray));
     }
@@ -127,12 +127,12 @@ TEST_CASE("intersectors return the closest of two stacked triangles", "[accel]")
 
   const rt::Hit from_above = accel->intersect(make_ray({0.25f, 0.25f, 1.0f}, {0, 0, -1}));
   REQUIRE(from_above.found());
-  CHECK(from_above.triangle == 1);
+  CHECK(from_above.primitive == 1);
   CHECK(from_above.t == Approx(1.0f).epsilon(1e-6));
 
   const rt::Hit from_below = accel->intersect(make_ray({0.25f, 0.25f, -2.0f}, {0, 0, 1}));
   REQUIRE(from_below.found());
-  CHECK(from_below.triangle == 0);
+  CHECK(from_below.primitive == 0);
   CHECK(from_below.t == Approx(1.0f).epsilon(1e-6));
   // On triangle 0, (0.25, 0.25) - p0 = (1.25, 1.25) = u (4, 0) + v (0, 4): u = v = 1.25 / 4.
   CHECK(from_below.u == Approx(0.3125f).epsilon(1e-6));
@@ -141,13 +141,13 @@ TEST_CASE("intersectors return the closest of two stacked triangles", "[accel]")
   // Starting past the nearer one (tnear) finds the farther one at t = 2.
   const rt::Hit skipped = accel->intersect(make_ray({0.25f, 0.25f, 1.0f}, {0, 0, -1}, 1.5f));
   REQUIRE(skipped.found());
-  CHECK(skipped.triangle == 0);
+  CHECK(skipped.primitive == 0);
   CHECK(skipped.t == Approx(2.0f).epsilon(1e-6));
 
   // Outside the small triangle only the large one is hit.
   const rt::Hit outside = accel->intersect(make_ray({2.0f, -0.5f, 1.0f}, {0, 0, -1}));
   REQUIRE(outside.found());
-  CHECK(outside.triangle == 0);
+  CHECK(outside.primitive == 0);
   CHECK(outside.t == Approx(2.0f).epsilon(1e-6));
 }
 
@@ -167,7 +167,7 @@ TEST_CASE("every intersector breaks exact ties in t towards the lowest index", "
   for (const Vec3f& origin : {Vec3f(0.25f, 0.25f, 1.0f), Vec3f(0.1f, 0.7f, -3.0f), Vec3f(0.6f, 0.1f, 2.0f)}) {
     const rt::Hit hit = accel->intersect(make_ray(origin, {0, 0, origin.z > 0 ? -1.0f : 1.0f}));
     REQUIRE(hit.found());
-    CHECK(hit.triangle == 0);
+    CHECK(hit.primitive == 0);
     CHECK(hit.t == Approx(std::abs(origin.z)).epsilon(1e-6));
     CHECK(hit.u == Approx(origin.x).epsilon(1e-6));
     CHECK(hit.v == Approx(origin.y).epsilon(1e-6));

@@ -108,13 +108,13 @@ std::string describe(const rt::Ray& ray, const rt::Hit& embree, const rt::Hit& r
   std::ostringstream out;
   out.precision(9);
   if (reference.found()) {
-    const Conditioning k = conditioning(flat, reference.triangle, ray, reference.t);
+    const Conditioning k = conditioning(flat, reference.primitive, ray, reference.t);
     out << "[cos(n, d) " << k.cosine << ", float32 error bounds: u and v " << k.u_error << ", t relative "
         << k.t_relative_error << "] ";
   }
   out << "ray o=(" << ray.origin.x << ", " << ray.origin.y << ", " << ray.origin.z << ") d=(" << ray.direction.x
-      << ", " << ray.direction.y << ", " << ray.direction.z << "): embree tri " << embree.triangle << " t " << embree.t
-      << " uv " << embree.u << " " << embree.v << "; reference tri " << reference.triangle << " t " << reference.t
+      << ", " << ray.direction.y << ", " << ray.direction.z << "): embree tri " << embree.primitive << " t " << embree.t
+      << " uv " << embree.u << " " << embree.v << "; reference tri " << reference.primitive << " t " << reference.t
       << " uv " << reference.u << " " << reference.v;
   return out.str();
 }
@@ -246,12 +246,12 @@ ConfigCounts crosscheck(const rt::FlatScene& flat, std::size_t ray_count, std::u
         const bool e_occluded = embree.occluded(ray);
         ++counts.rays;
         if (r.found()) ++counts.hits;
-        if (e.t == r.t && e.u == r.u && e.v == r.v && e.triangle == r.triangle && e_occluded == r_occluded)
+        if (e.t == r.t && e.u == r.u && e.v == r.v && e.primitive == r.primitive && e_occluded == r_occluded)
           ++counts.identical;
 
         bool agree = e.found() == r.found() && e_occluded == e.found() && r_occluded == r.found();
         if (agree && r.found()) {
-          agree = e.triangle == r.triangle &&
+          agree = e.primitive == r.primitive &&
                   std::abs(double(e.t) - double(r.t)) <= kTRelative * std::abs(double(r.t)) &&
                   std::abs(double(e.u) - double(r.u)) <= kBarycentricTolerance &&
                   std::abs(double(e.v) - double(r.v)) <= kBarycentricTolerance;
@@ -260,9 +260,9 @@ ConfigCounts crosscheck(const rt::FlatScene& flat, std::size_t ray_count, std::u
           ++counts.agreements;
         } else if ((e.found() && edge_distance(e) < kEdgeEpsilon) || (r.found() && edge_distance(r) < kEdgeEpsilon)) {
           ++counts.ambiguous;
-        } else if (e.found() && r.found() && e.triangle == r.triangle &&
+        } else if (e.found() && r.found() && e.primitive == r.primitive &&
                    [&] {
-                     const Conditioning bound = conditioning(flat, r.triangle, ray, r.t);
+                     const Conditioning bound = conditioning(flat, r.primitive, ray, r.t);
                      const double t_tolerance = std::max(kTRelative, bound.t_relative_error) * std::abs(double(r.t));
                      return std::abs(double(e.t) - double(r.t)) <= t_tolerance &&
                             std::abs(double(e.u) - double(r.u)) <= bound.u_error &&

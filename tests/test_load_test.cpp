@@ -32,20 +32,12 @@ namespace {
 
 constexpr const char* kPath = "fixture.test";
 
-// Coarse spheres keep the fixtures small; the tessellation itself is tested separately.
-rt::TestSceneOptions coarse() {
-  rt::TestSceneOptions options;
-  options.sphere_slices = 8;
-  options.sphere_stacks = 4;
-  return options;
-}
-
-rt::Scene parse(const std::string& text) { return rt::parse_test_scene(text, kPath, coarse()); }
+rt::Scene parse(const std::string& text) { return rt::parse_test_scene(text, kPath); }
 
 // The what() of the InputError parsing `text` throws, or "" if it throws none.
 std::string error_of(const std::string& text, const std::string& path = "bad.test") {
   try {
-    rt::parse_test_scene(text, path, coarse());
+    rt::parse_test_scene(text, path);
   } catch (const rt::InputError& error) {
     return error.what();
   }
@@ -252,7 +244,7 @@ TEST_CASE("test scenes: attenuation is state for later point lights, lights are 
   CHECK(scene.lights[3].attenuation == rt::Vec3d(0, 0, 2));
 }
 
-TEST_CASE("test scenes: spheres are tessellated in object space under the current transform", "[io][cse167x]") {
+TEST_CASE("test scenes: spheres are exact spheres in object space under the current transform", "[io][cse167x]") {
   const std::string text = std::string(kHeader) +
                            "pushTransform\n"
                            "translate 1 0 0\n"
@@ -261,36 +253,34 @@ TEST_CASE("test scenes: spheres are tessellated in object space under the curren
                            "popTransform\n"
                            "sphere 0 0 1 0.5\n"
                            "sphere 0 0 0 0.5\n";
-  rt::TestSceneOptions options;
-  options.sphere_slices = 12;
-  options.sphere_stacks = 6;
-  const rt::Scene scene = rt::parse_test_scene(text, kPath, options);
+  const rt::Scene scene = rt::parse_test_scene(text, kPath);
   const auto nodes = geometry_nodes(scene);
   REQUIRE(nodes.size() == 3);
   CHECK(near(apply(nodes[0]->parent_from_node, {0, 1, 1}), {1, 2, 1}));  // ellipsoid: y doubled
   CHECK(near(nodes[1]->parent_from_node, rt::Mat4d(1.0)));
-  REQUIRE(nodes[0]->models.size() == 1);
-  const rt::TriangleMesh& mesh = *nodes[0]->models[0].mesh;
-  CHECK(mesh.triangles.size() == 2u * 12u * 5u);
-  REQUIRE(mesh.normals.size() == mesh.positions.size());
-  rt::Vec3f low(1e9f), high(-1e9f);
-  for (std::size_t i = 0; i < mesh.positions.size(); ++i) {
-    low = glm::min(low, mesh.positions[i]);
-    high = glm::max(high, mesh.positions[i]);
-    // On the sphere of radius 0.5 about (0, 0, 1), with the outward unit normal.
-    const rt::Vec3d offset = rt::Vec3d(mesh.positions[i]) - rt::Vec3d(0, 0, 1);
-    CHECK(glm::length(offset) == Approx(0.5).margin(1e-6));
-    CHECK(near(rt::Vec3d(mesh.normals[i]), offset / 0.5, 1e-5));
+  for (const rt::Node* node : nodes) {
+    REQUIRE(node->models.size() == 1);
+    CHECK_FALSE(node->models[0].mesh);
+    REQUIRE(node->models[0].sphere);
+    CHECK(node->models[0].sphere->radius == 0.5);
   }
-  CHECK(near(rt::Vec3d(low), {-0.5, -0.5, 0.5}, 0.02));
-  CHECK(near(rt::Vec3d(high), {0.5, 0.5, 1.5}, 0.02));
-  // The same sphere twice shares one mesh; another centre gets its own.
-  CHECK(nodes[1]->models[0].mesh == nodes[0]->models[0].mesh);
-  CHECK(nodes[2]->models[0].mesh != nodes[0]->models[0].mesh);
+  CHECK(nodes[0]->models[0].sphere->center == rt::Vec3d(0, 0, 1));
+  CHECK(nodes[2]->models[0].sphere->center == rt::Vec3d(0, 0, 0));
 
-  // The default tessellation is 128 x 64.
-  const rt::Scene fine = rt::parse_test_scene(std::string(kHeader) + "sphere 0 0 0 1\n", kPath);
-  CHECK(geometry_nodes(fine).at(0)->models.at(0).mesh->triangles.size() == 2u * 128u * 63u);
+  // Flattened: one analytic ellipsoid with semi-axes (0.5, 1, 0.5) about (1, 0, 1) under the
+  // transform, or a tessellation of it on request.
+  const rt::FlatScene flat = rt::flatten_scene(scene);
+  REQUIRE(flat.spheres.size() == 3);
+  CHECK(flat.triangle_count() == 0);
+  const rt::Mat4d& m = flat.spheres[0].world_from_object;
+  CHECK(near(apply(m, {0, 0, 0}), {1, 0, 1}));
+  CHECK(near(apply(m, {0, 1, 0}), {1, 1, 1}));
+  CHECK(near(apply(m, {1, 0, 0}), {1.5, 0, 1}));
+  rt::FlattenOptions tessellate;
+  tessellate.sphere_tessellation = 12;
+  const rt::FlatScene meshes = rt::flatten_scene(scene, tessellate);
+  CHECK(meshes.spheres.empty());
+  CHECK(meshes.triangle_count() == 3u * 2u * 12u * 5u);
 }
 
 TEST_CASE("test scenes: trinormal uses the vertexnormal data", "[io][cse167x]") {
@@ -482,29 +472,27 @@ std::optional<fs::path> corpus_dir() {
 struct Rendered {
   rt::Scene scene;
   rt::Image image;
-  std::size_t triangles = 0;
+  std::size_t triangles = 0, spheres = 0;
   double seconds = 0.0;
 };
 
-Rendered render_file(const fs::path& file, const rt::TestSceneOptions& options, int width = 0, int height = 0) {
+// sphere_tessellation: 0 renders exact spheres, N >= 3 UV spheres of N slices (FlattenOptions).
+Rendered render_file(const fs::path& file, int sphere_tessellation, int width = 0, int height = 0) {
   const auto start = std::chrono::steady_clock::now();
-  Rendered r{rt::load_test_scene(file.string(), options), {}, 0, 0.0};
+  Rendered r{rt::load_test_scene(file.string()), {}, 0, 0, 0.0};
   if (width > 0) {
     r.scene.settings.width = width;
     r.scene.settings.height = height;
   }
-  const rt::FlatScene flat = rt::flatten_scene(r.scene);
+  rt::FlattenOptions options;
+  options.sphere_tessellation = sphere_tessellation;
+  const rt::FlatScene flat = rt::flatten_scene(r.scene, options);
   const auto accel = rt::build_accel(rt::AccelKind::embree, flat);
   r.image = rt::render_image(r.scene, flat, *accel, {}).image;
   r.triangles = flat.triangle_count();
+  r.spheres = flat.spheres.size();
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return r;
-}
-
-bool has_spheres(const rt::Scene& scene) {
-  for (const rt::Node& node : scene.nodes)
-    if (node.name.starts_with("sphere")) return true;
-  return false;
 }
 
 // What the primary ray of each pixel hits in our render: 0 nothing, 1 a tri, 2 a sphere.
@@ -538,20 +526,15 @@ struct Match {
 
 std::uint8_t to_byte(float c) { return static_cast<std::uint8_t>(std::lround(255.0 * double(c))); }
 
-// Sphere tessellation of the reference comparison: the loader's default, or SLICESxSTACKS from
-// the environment variable RT_CSE167X_SPHERES (e.g. 256x128), to see how the figures converge.
-rt::TestSceneOptions reference_options() {
-  rt::TestSceneOptions options;
+// Spheres of the reference comparison: exact, or tessellated with N slices from the environment
+// variable RT_CSE167X_SPHERES=N (e.g. 128), to compare the two.
+int reference_sphere_tessellation() {
   if (const char* value = std::getenv("RT_CSE167X_SPHERES")) {
-    int slices = 0, stacks = 0;
-    if (std::sscanf(value, "%dx%d", &slices, &stacks) == 2 && slices >= 3 && stacks >= 2) {
-      options.sphere_slices = slices;
-      options.sphere_stacks = stacks;
-    } else {
-      WARN("ignoring RT_CSE167X_SPHERES='" << value << "' (expected SLICESxSTACKS, e.g. 256x128)");
-    }
+    int slices = 0;
+    if (std::sscanf(value, "%d", &slices) == 1 && slices >= 3) return slices;
+    WARN("ignoring RT_CSE167X_SPHERES='" << value << "' (expected a slice count >= 3)");
   }
-  return options;
+  return 0;
 }
 
 }  // namespace
@@ -563,19 +546,16 @@ TEST_CASE("test scenes: every corpus file loads and renders", "[io][cse167x][cor
       "scenes/scene4-ambient.test", "scenes/scene4-diffuse.test", "scenes/scene4-emission.test",
       "scenes/scene4-specular.test", "scenes/scene5.test", "scenes/scene6.test", "scenes/scene7.test",
       "scenes/testscenes/scene1.test", "scenes/testscenes/scene2.test", "scenes/testscenes/scene3.test"};
-  // Reduced size and coarse spheres: this checks loading and rendering, not pixels (see below).
-  rt::TestSceneOptions options;
-  options.sphere_slices = 24;
-  options.sphere_stacks = 12;
+  // Reduced size: this checks loading and rendering, not pixels (see below).
   for (const std::string& name : files) {
     INFO(name);
     const fs::path file = *dir / name;
     REQUIRE(fs::exists(file));
-    const Rendered r = render_file(file, options, 160, 120);
-    std::cout << fmt::format("{}: {} triangles, {} lights, {} materials, {:.2f} s (160x120)\n", name, r.triangles,
-                             r.scene.lights.size(), r.scene.materials.size(), r.seconds);
+    const Rendered r = render_file(file, 0, 160, 120);
+    std::cout << fmt::format("{}: {} triangles, {} spheres, {} lights, {} materials, {:.2f} s (160x120)\n", name,
+                             r.triangles, r.spheres, r.scene.lights.size(), r.scene.materials.size(), r.seconds);
     CHECK(r.scene.settings.width == 160);
-    CHECK(r.triangles > 0);
+    CHECK(r.triangles + r.spheres > 0);
     // Something is visible: at least 2% of the pixels are not black.
     const auto lit = std::count_if(r.image.pixels.begin(), r.image.pixels.end(),
                                    [](const rt::Color& c) { return c.r + c.g + c.b > 0.0f; });
@@ -586,7 +566,7 @@ TEST_CASE("test scenes: every corpus file loads and renders", "[io][cse167x][cor
   CHECK(scene7.settings.output == "scene7.png");
   CHECK(scene7.materials.size() == 1);          // 100,000 tris, one material
   CHECK(scene7.nodes.size() == 2);              // root + one mesh under translate 0 -5 0
-  const rt::Scene scene5 = rt::load_test_scene((*dir / "scenes/scene5.test").string(), options);
+  const rt::Scene scene5 = rt::load_test_scene((*dir / "scenes/scene5.test").string());
   CHECK(scene5.nodes.size() == 1001);           // root + 1000 spheres
   CHECK(scene5.materials.size() == 1);
   CHECK(scene5.lights.size() == 2);
@@ -599,13 +579,14 @@ TEST_CASE("test scenes: corpus renders match the official grader images", "[io][
   const auto dir = corpus_dir();
   if (!dir) return;
   const rt::Image mask = rt::read_image((*dir / "reference/watermark-mask.png").string());
-  const rt::TestSceneOptions options = reference_options();
+  const int tessellation = reference_sphere_tessellation();
+  const std::string spheres = tessellation ? fmt::format("tessellated, {} slices", tessellation) : "exact";
   for (const char* name : {"scene4-ambient", "scene4-diffuse", "scene4-emission", "scene4-specular", "scene5"}) {
     INFO(name);
     const fs::path reference_file = *dir / "reference" / (std::string(name) + ".png");
     REQUIRE(fs::exists(reference_file));
     const rt::Image reference = rt::read_image(reference_file.string());
-    const Rendered r = render_file(*dir / "scenes" / (std::string(name) + ".test"), options);
+    const Rendered r = render_file(*dir / "scenes" / (std::string(name) + ".test"), tessellation);
     REQUIRE(r.image.width == reference.width);
     REQUIRE(r.image.height == reference.height);
     REQUIRE(mask.width == reference.width);
@@ -625,19 +606,12 @@ TEST_CASE("test scenes: corpus renders match the official grader images", "[io][
         m->identical += worst == 0;
       }
     }
-    std::cout << fmt::format("{} vs official image (spheres {}x{}, {} triangles, {:.1f} s): {}\n", name,
-                             options.sphere_slices, options.sphere_stacks, r.triangles, r.seconds,
-                             all.describe())
+    std::cout << fmt::format("{} vs official image (spheres {}, {} triangles, {} spheres, {:.1f} s): {}\n", name,
+                             spheres, r.triangles, r.spheres, r.seconds, all.describe())
               << fmt::format("    primary ray hits a tri: {}\n", by_class[1].describe())
               << fmt::format("    primary ray hits a sphere: {}\n", by_class[2].describe())
               << fmt::format("    primary ray misses: {}\n", by_class[0].describe());
     CHECK(all.compared == 259200u);
-    if (has_spheres(r.scene)) {
-      WARN(fmt::format("{}: {:.3f}% of pixels within 1 of the official image; not held to the 99.5% bar: its "
-                       "spheres are tessellated ({}x{}), analytic spheres are pending",
-                       name, 100.0 * all.fraction(), options.sphere_slices, options.sphere_stacks));
-    } else {
-      CHECK(all.fraction() >= 0.995);
-    }
+    if (tessellation == 0) CHECK(all.fraction() >= 0.995);
   }
 }

@@ -170,7 +170,7 @@ TEST_CASE("exact ties are won by the lowest index on every path", "[numerics]") 
           ++rays[p];
           if (!hit.found())
             ++misses[p];
-          else if (hit.triangle == indices[0])
+          else if (hit.primitive == indices[0])
             ++lowest[p];
           else
             ++other[p];
@@ -252,7 +252,7 @@ TEST_CASE("inexact coplanar overlaps disagree only within the float32 resolution
             ++misses[p];
             continue;
           }
-          if (hit.triangle == reference.triangle) {
+          if (hit.primitive == reference.primitive) {
             ++same[p];
             continue;
           }
@@ -348,8 +348,8 @@ const std::array<DegenerateCounts, kPathCount>& degenerate_counts() {
         const rt::Hit hit = accel->intersect(ray);
         const bool occluded = accel->occluded(ray);
         ++c.rays;
-        if (hit.found() && hit.triangle == valid) ++c.valid_hits;
-        if (hit.found() && hit.triangle != valid) ++c.degenerate_hits;
+        if (hit.found() && hit.primitive == valid) ++c.valid_hits;
+        if (hit.found() && hit.primitive != valid) ++c.degenerate_hits;
         const bool finite = !hit.found() || (std::isfinite(hit.t) && std::isfinite(hit.u) && std::isfinite(hit.v));
         if (!finite || occluded != hit.found()) ++c.malformed;
       }
@@ -453,7 +453,7 @@ TEST_CASE("flatten_scene drops and counts degenerate triangles", "[numerics]") {
       const rt::Hit hit = accel->intersect(ray);
       INFO(name(path));
       REQUIRE(hit.found());
-      CHECK(hit.triangle == 0);  // the two valid triangles tie; the lower index wins
+      CHECK(hit.primitive == 0);  // the two valid triangles tie; the lower index wins
       CHECK(hit.t == 1.0f);
     }
   }

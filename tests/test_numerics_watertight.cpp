@@ -252,7 +252,7 @@ bool well_formed(const rt::Hit& hit, const rt::Ray& ray, std::size_t triangles) 
   const double u = hit.u, v = hit.v;
   return std::isfinite(hit.t) && std::isfinite(hit.u) && std::isfinite(hit.v) && hit.t >= ray.tnear &&
          hit.t <= ray.tfar && u >= -kBarycentricSlack && v >= -kBarycentricSlack &&
-         1.0 - u - v >= -kBarycentricSlack && hit.triangle < triangles;
+         1.0 - u - v >= -kBarycentricSlack && hit.primitive < triangles;
 }
 
 // A triangle in one of three planes that float32 represents exactly, and points and directions in
@@ -316,7 +316,7 @@ TEST_CASE("grazing and parallel rays give finite, in-range, stable answers", "[n
       GrazingCounts& g = counts[p];
       if (!well_formed(hit, ray, 1)) ++g.malformed;
       const rt::Hit again = accels[p]->intersect(ray);
-      if (again.t != hit.t || again.u != hit.u || again.v != hit.v || again.triangle != hit.triangle) ++g.unstable;
+      if (again.t != hit.t || again.u != hit.u || again.v != hit.v || again.primitive != hit.primitive) ++g.unstable;
       if (accels[p]->occluded(ray) != hit.found()) ++g.occluded_mismatch;
     };
     // Plane coordinates (a, b) of a point of the plane, as on_plane takes them.

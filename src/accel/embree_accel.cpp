@@ -54,112 +54,159 @@ RTCBuildQuality to_embree(EmbreeQuality quality) {
   return RTC_BUILD_QUALITY_MEDIUM;
 }
 
-// Intersection context that orders hits by (t, primitive index). Embree passes our
-// RTCIntersectContext pointer to the filter, so fields after it travel along (the pattern of
-// Embree's own tutorials).
-struct OrderedHitContext {
+// The closest hit so far, ordered by (t, primitive index) like the reference. Embree passes our
+// RTCIntersectContext pointer to filters and user-geometry callbacks, so the fields after it travel
+// along (the pattern of Embree's own tutorials). Occlusion queries pass a plain context.
+struct HitContext {
   RTCIntersectContext embree;
-  float best_t;         // t of the hit accepted so far (the ray's tfar until one is)
-  unsigned best_prim;   // its primitive index; RTC_INVALID_GEOMETRY_ID before any hit
+  double best_t;       // t of the hit accepted so far (the ray's tfar until one is)
+  unsigned best_prim;  // its FlatScene primitive number; RTC_INVALID_GEOMETRY_ID before any hit
+  double best_b1, best_b2;
+
+  // Accepts a candidate that is strictly closer, or equally close with a lower index: the closest
+  // hit then does not depend on BVH layout or traversal order.
+  bool offer(double t, unsigned prim, double b1, double b2) {
+    if (!(t < best_t || (t == best_t && prim < best_prim))) return false;
+    best_t = t;
+    best_prim = prim;
+    best_b1 = b1;
+    best_b2 = b2;
+    return true;
+  }
 };
 
-// Embree offers candidates to the filter one after another, having set the ray's tfar to the
-// candidate's t. Accepting only strictly closer hits, or equally close ones with a lower index,
-// makes the closest hit independent of BVH layout and traversal order. One catch: Embree's depth
-// test for later candidates is T <= |den| * tfar on unnormalised values, which rounding can fail
-// for a candidate whose t = T / |den| equals tfar exactly. So on acceptance tfar is widened by
-// 2^-20 relative (~16 ulps, far more than that rounding); the filter, not the depth test, then
-// decides between candidates by exact comparison of t, and intersect() reports best_t.
+// Embree culls boxes and (native) candidates beyond the ray's tfar; after accepting a hit at t the
+// callbacks set tfar 2^-20 relative (~16 ulps) beyond it, so an equally close candidate elsewhere
+// still reaches them: Embree's own depth test T <= |den| * tfar on unnormalised values can fail by
+// rounding for a candidate whose t equals tfar exactly. HitContext::offer decides by exact
+// comparison instead, and intersect() reports best_t.
+float widened(double t) {
+  const auto f = static_cast<float>(t);
+  return f + std::abs(f) * 0x1p-20f;
+}
+
+// Intersection filter of the native triangle geometry: Embree offers candidates one after another,
+// having set the ray's tfar to the candidate's t.
 void order_hits(const RTCFilterFunctionNArguments* args) {
-  auto* context = reinterpret_cast<OrderedHitContext*>(args->context);
+  auto* context = reinterpret_cast<HitContext*>(args->context);
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] == 0) continue;
     float& tfar = RTCRayN_tfar(args->ray, args->N, i);
-    const float t = tfar;
-    const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
-    if (t < context->best_t || (t == context->best_t && prim < context->best_prim)) {
-      context->best_t = t;
-      context->best_prim = prim;
-      tfar = t + std::abs(t) * 0x1p-20f;
-    } else {
+    if (context->offer(tfar, RTCHitN_primID(args->hit, args->N, i), RTCHitN_u(args->hit, args->N, i),
+                       RTCHitN_v(args->hit, args->N, i)))
+      tfar = widened(tfar);
+    else
       args->valid[i] = 0;
-    }
   }
 }
 
 // ---------------------------------------------------------------------------------------------
-// The watertight kernel: every triangle is a primitive of one Embree user geometry whose
-// callbacks run intersect_triangle_watertight in double, on the same float32 vertices.
+// User geometries: spheres always, and triangles with the watertight kernel. Their callbacks run
+// the reference's double-precision tests on the FlatScene data.
 
-// What the user-geometry callbacks read: the world-space float32 buffers and the box padding.
-struct WatertightTriangles {
+constexpr unsigned kTriangleGeometry = 0, kSphereGeometry = 1;
+
+// What the user-geometry callbacks read: the world-space scene and the box padding.
+struct UserGeometryData {
   const FlatScene* flat = nullptr;
-  float box_padding = 0.0f;  // world-space units, added on every side of each triangle's box
+  float box_padding = 0.0f;  // world-space units, added on every side of each primitive's box
 };
+
+// World-space bounds of a sphere: the unit sphere under M = world_from_object reaches
+// +-sqrt(sum_j M_ij^2) from the centre along world axis i.
+void sphere_box(const FlatSphere& sphere, Vec3d& lower, Vec3d& upper) {
+  const Mat4d& m = sphere.world_from_object;
+  const Vec3d centre(m[3]);
+  const Vec3d half(glm::length(Vec3d(m[0][0], m[1][0], m[2][0])), glm::length(Vec3d(m[0][1], m[1][1], m[2][1])),
+                   glm::length(Vec3d(m[0][2], m[1][2], m[2][2])));
+  lower = centre - half;
+  upper = centre + half;
+}
 
 // Embree traverses user geometry with its fast, non-conservative box test (Embree 3.13 compiles
 // BVH4VirtualIntersector1 with robust = false whatever the scene flags say), so a ray through a
-// triangle's vertex or edge can be culled at a box face it only touches. The slab distances that
-// test computes, fl(lower * rdir - fl(org * rdir)) with an approximate reciprocal rdir, are off by
-// at most a few float32 ulps of |lower| + |org| in world units; boxes padded by 2^-18 times the
-// scene's largest coordinate magnitude M absorb that error (with a margin of 4 and more) for every
-// ray whose origin lies within 7 M of the world origin: all secondary rays, and camera rays unless
-// the eye is far outside the scene. The padding only makes boxes overlap slightly more.
-float watertight_box_padding(const FlatScene& flat) {
-  float largest = 0.0f;
-  for (const Vec3f& p : flat.positions)
-    largest = std::max({largest, std::abs(p.x), std::abs(p.y), std::abs(p.z)});
-  return std::max(largest, 1.0f) * 0x1p-18f;
+// triangle's vertex or edge can be culled at a box face it only touches: unpadded, 4,381 of the
+// watertightness test's 210,000 rays escaped. The slab distances that test computes,
+// fl(lower * rdir - fl(org * rdir)) with an approximate reciprocal rdir, are off by at most a few
+// float32 ulps of |lower| + |org| in world units; boxes padded by 2^-18 times the scene's largest
+// coordinate magnitude M absorb that error (with a margin of 4 and more) for every ray whose origin
+// lies within 7 M of the world origin: all secondary rays, and camera rays unless the eye is far
+// outside the scene. The padding only makes boxes overlap slightly more.
+double max_abs_component(const Vec3d& v) { return std::max({std::abs(v.x), std::abs(v.y), std::abs(v.z)}); }
+
+float user_box_padding(const FlatScene& flat) {
+  double largest = 1.0;
+  for (const Vec3f& p : flat.positions) largest = std::max(largest, max_abs_component(Vec3d(p)));
+  for (const FlatSphere& sphere : flat.spheres) {
+    Vec3d lower, upper;
+    sphere_box(sphere, lower, upper);
+    largest = std::max({largest, max_abs_component(lower), max_abs_component(upper)});
+  }
+  return static_cast<float>(largest * 0x1p-18);
 }
 
-void watertight_bounds(const RTCBoundsFunctionArguments* args) {
-  const auto* triangles = static_cast<const WatertightTriangles*>(args->geometryUserPtr);
-  const FlatScene& flat = *triangles->flat;
+void set_bounds(const RTCBoundsFunctionArguments* args, const Vec3f& lower, const Vec3f& upper) {
+  const float pad = static_cast<const UserGeometryData*>(args->geometryUserPtr)->box_padding;
+  *args->bounds_o = RTCBounds{lower.x - pad, lower.y - pad, lower.z - pad, 0.0f,
+                              upper.x + pad, upper.y + pad, upper.z + pad, 0.0f};
+}
+
+void triangle_bounds(const RTCBoundsFunctionArguments* args) {
+  const FlatScene& flat = *static_cast<const UserGeometryData*>(args->geometryUserPtr)->flat;
   const Vec3u tri = flat.triangles[args->primID];
   const Vec3f a = flat.positions[tri.x], b = flat.positions[tri.y], c = flat.positions[tri.z];
-  const Vec3f lower = glm::min(a, glm::min(b, c)) - triangles->box_padding;
-  const Vec3f upper = glm::max(a, glm::max(b, c)) + triangles->box_padding;
-  *args->bounds_o = RTCBounds{lower.x, lower.y, lower.z, 0.0f, upper.x, upper.y, upper.z, 0.0f};
+  set_bounds(args, glm::min(a, glm::min(b, c)), glm::max(a, glm::max(b, c)));
 }
 
-// The closest hit found so far, in double, ordered by (t, primitive index) like the reference.
-struct WatertightHitContext {
-  RTCIntersectContext embree;
-  double best_t;       // the ray's tfar until a hit is accepted
-  unsigned best_prim;  // RTC_INVALID_GEOMETRY_ID before any hit
-  double best_b1, best_b2;
-};
+void sphere_bounds(const RTCBoundsFunctionArguments* args) {
+  const FlatScene& flat = *static_cast<const UserGeometryData*>(args->geometryUserPtr)->flat;
+  Vec3d lower, upper;
+  sphere_box(flat.spheres[args->primID], lower, upper);
+  // Rounded outwards to float32; the padding covers the rounding of the box itself.
+  Vec3f lo, hi;
+  for (int i = 0; i < 3; ++i) {
+    lo[i] = std::nextafter(static_cast<float>(lower[i]), -kInfinity);
+    hi[i] = std::nextafter(static_cast<float>(upper[i]), kInfinity);
+  }
+  set_bounds(args, lo, hi);
+}
 
-bool intersect_flat_triangle(const FlatScene& flat, unsigned prim, const Vec3d& origin, const Vec3d& direction,
-                             double tnear, double tfar, TriangleHitD& hit) {
+// The double-precision test of one user primitive (index within its geometry).
+bool test_primitive(unsigned geometry, const FlatScene& flat, unsigned prim, const Vec3d& origin,
+                    const Vec3d& direction, double tnear, double tfar, TriangleHitD& hit) {
+  if (geometry == kSphereGeometry) {
+    hit = {};
+    return intersect_sphere(origin, direction, tnear, tfar, flat.spheres[prim], hit.t);
+  }
   const Vec3u tri = flat.triangles[prim];
   return intersect_triangle_watertight(origin, direction, tnear, tfar, Vec3d(flat.positions[tri.x]),
                                        Vec3d(flat.positions[tri.y]), Vec3d(flat.positions[tri.z]), hit);
 }
 
-void watertight_intersect(const RTCIntersectFunctionNArguments* args) {
-  const auto* triangles = static_cast<const WatertightTriangles*>(args->geometryUserPtr);
-  auto* context = reinterpret_cast<WatertightHitContext*>(args->context);
+Vec3d ray_origin(RTCRayN* ray, unsigned n, unsigned i) {
+  return {RTCRayN_org_x(ray, n, i), RTCRayN_org_y(ray, n, i), RTCRayN_org_z(ray, n, i)};
+}
+Vec3d ray_direction(RTCRayN* ray, unsigned n, unsigned i) {
+  return {RTCRayN_dir_x(ray, n, i), RTCRayN_dir_y(ray, n, i), RTCRayN_dir_z(ray, n, i)};
+}
+
+template <unsigned kGeometry>
+void user_intersect(const RTCIntersectFunctionNArguments* args) {
+  const FlatScene& flat = *static_cast<const UserGeometryData*>(args->geometryUserPtr)->flat;
+  auto* context = reinterpret_cast<HitContext*>(args->context);
   RTCRayN* ray = RTCRayHitN_RayN(args->rayhit, args->N);
   RTCHitN* hit_out = RTCRayHitN_HitN(args->rayhit, args->N);
+  // Spheres are numbered after all triangles.
+  const unsigned prim = kGeometry == kSphereGeometry ? static_cast<unsigned>(flat.triangles.size()) + args->primID
+                                                     : args->primID;
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] == 0) continue;
-    const Vec3d origin(RTCRayN_org_x(ray, args->N, i), RTCRayN_org_y(ray, args->N, i), RTCRayN_org_z(ray, args->N, i));
-    const Vec3d direction(RTCRayN_dir_x(ray, args->N, i), RTCRayN_dir_y(ray, args->N, i),
-                          RTCRayN_dir_z(ray, args->N, i));
     TriangleHitD hit;
-    if (!intersect_flat_triangle(*triangles->flat, args->primID, origin, direction, RTCRayN_tnear(ray, args->N, i),
-                                 context->best_t, hit))
+    if (!test_primitive(kGeometry, flat, args->primID, ray_origin(ray, args->N, i), ray_direction(ray, args->N, i),
+                        RTCRayN_tnear(ray, args->N, i), context->best_t, hit) ||
+        !context->offer(hit.t, prim, hit.b1, hit.b2))
       continue;
-    if (!(hit.t < context->best_t || args->primID < context->best_prim)) continue;
-    context->best_t = hit.t;
-    context->best_prim = args->primID;
-    context->best_b1 = hit.b1;
-    context->best_b2 = hit.b2;
-    // Embree only needs tfar to cull boxes entirely beyond the hit; widened as in order_hits so
-    // an equally close candidate in another leaf still reaches this callback.
-    const auto t = static_cast<float>(hit.t);
-    RTCRayN_tfar(ray, args->N, i) = t + std::abs(t) * 0x1p-20f;
+    RTCRayN_tfar(ray, args->N, i) = widened(hit.t);
     RTCHitN_geomID(hit_out, args->N, i) = args->geomID;
     RTCHitN_primID(hit_out, args->N, i) = args->primID;
     RTCHitN_instID(hit_out, args->N, i, 0) = args->context->instID[0];
@@ -168,18 +215,15 @@ void watertight_intersect(const RTCIntersectFunctionNArguments* args) {
   }
 }
 
-void watertight_occluded(const RTCOccludedFunctionNArguments* args) {
-  const auto* triangles = static_cast<const WatertightTriangles*>(args->geometryUserPtr);
+template <unsigned kGeometry>
+void user_occluded(const RTCOccludedFunctionNArguments* args) {
+  const FlatScene& flat = *static_cast<const UserGeometryData*>(args->geometryUserPtr)->flat;
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] == 0) continue;
     float& tfar = RTCRayN_tfar(args->ray, args->N, i);
-    const Vec3d origin(RTCRayN_org_x(args->ray, args->N, i), RTCRayN_org_y(args->ray, args->N, i),
-                       RTCRayN_org_z(args->ray, args->N, i));
-    const Vec3d direction(RTCRayN_dir_x(args->ray, args->N, i), RTCRayN_dir_y(args->ray, args->N, i),
-                          RTCRayN_dir_z(args->ray, args->N, i));
     TriangleHitD hit;
-    if (intersect_flat_triangle(*triangles->flat, args->primID, origin, direction,
-                                RTCRayN_tnear(args->ray, args->N, i), tfar, hit))
+    if (test_primitive(kGeometry, flat, args->primID, ray_origin(args->ray, args->N, i),
+                       ray_direction(args->ray, args->N, i), RTCRayN_tnear(args->ray, args->N, i), tfar, hit))
       tfar = -kInfinity;
   }
 }
@@ -189,8 +233,7 @@ void watertight_occluded(const RTCOccludedFunctionNArguments* args) {
 struct EmbreeAccel::Impl {
   RTCDevice device = nullptr;
   RTCScene scene = nullptr;
-  EmbreeKernel kernel = EmbreeKernel::native;
-  WatertightTriangles watertight;
+  UserGeometryData user_data;  // read by the user-geometry callbacks
   std::mutex error_mutex;
   std::string first_error;  // recorded by the callback; never thrown across Embree's frames
 
@@ -206,6 +249,24 @@ struct EmbreeAccel::Impl {
     if (!first_error.empty()) throw RuntimeError(fmt::format("{} failed: {}", step, first_error));
   }
 
+  template <unsigned kGeometry>
+  RTCGeometry new_user_geometry(std::size_t count, RTCBoundsFunction bounds) {
+    RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
+    rtcSetGeometryUserPrimitiveCount(geometry, static_cast<unsigned>(count));
+    rtcSetGeometryUserData(geometry, &user_data);
+    rtcSetGeometryBoundsFunction(geometry, bounds, nullptr);
+    rtcSetGeometryIntersectFunction(geometry, &user_intersect<kGeometry>);
+    rtcSetGeometryOccludedFunction(geometry, &user_occluded<kGeometry>);
+    return geometry;
+  }
+
+  void attach(RTCGeometry geometry, unsigned id, EmbreeQuality quality) {
+    rtcSetGeometryBuildQuality(geometry, to_embree(quality));
+    rtcCommitGeometry(geometry);
+    rtcAttachGeometryByID(scene, geometry, id);
+    rtcReleaseGeometry(geometry);
+  }
+
   ~Impl() {
     if (scene) rtcReleaseScene(scene);
     if (device) rtcReleaseDevice(device);
@@ -213,18 +274,21 @@ struct EmbreeAccel::Impl {
 };
 
 EmbreeAccel::EmbreeAccel(const FlatScene& flat, const AccelOptions& options) : impl_(std::make_unique<Impl>()) {
+  if (flat.triangle_count() + flat.spheres.size() >= RTC_INVALID_GEOMETRY_ID)
+    throw RuntimeError("scene has more primitives than Embree can number");
   impl_->device = rtcNewDevice(nullptr);
   if (!impl_->device)
     throw RuntimeError(fmt::format("creating the Embree device failed: {}", error_name(rtcGetDeviceError(nullptr))));
   rtcSetDeviceErrorFunction(impl_->device, &Impl::on_error, impl_.get());
 
   impl_->scene = rtcNewScene(impl_->device);
-  // The context filter orders closest hits; occlusion queries pass none.
+  // The context filter orders the native triangle kernel's closest hits; user geometries order
+  // their own; occlusion queries pass no filter.
   rtcSetSceneFlags(impl_->scene, static_cast<RTCSceneFlags>(
                                      RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION |
                                      (options.embree_robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE)));
   rtcSetSceneBuildQuality(impl_->scene, to_embree(options.embree_quality));
-  impl_->kernel = options.embree_kernel;
+  impl_->user_data = {&flat, user_box_padding(flat)};
   if (flat.triangle_count() > 0) {
     RTCGeometry geometry = nullptr;
     if (options.embree_kernel == EmbreeKernel::native) {
@@ -236,19 +300,13 @@ EmbreeAccel::EmbreeAccel(const FlatScene& flat, const AccelOptions& options) : i
       rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, flat.triangles.data(), 0,
                                  sizeof(Vec3u), flat.triangles.size());
     } else {
-      impl_->watertight = {&flat, watertight_box_padding(flat)};
-      geometry = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_USER);
-      rtcSetGeometryUserPrimitiveCount(geometry, static_cast<unsigned>(flat.triangle_count()));
-      rtcSetGeometryUserData(geometry, &impl_->watertight);
-      rtcSetGeometryBoundsFunction(geometry, &watertight_bounds, nullptr);
-      rtcSetGeometryIntersectFunction(geometry, &watertight_intersect);
-      rtcSetGeometryOccludedFunction(geometry, &watertight_occluded);
+      geometry = impl_->new_user_geometry<kTriangleGeometry>(flat.triangle_count(), &triangle_bounds);
     }
-    rtcSetGeometryBuildQuality(geometry, to_embree(options.embree_quality));
-    rtcCommitGeometry(geometry);
-    rtcAttachGeometryByID(impl_->scene, geometry, 0);
-    rtcReleaseGeometry(geometry);
+    impl_->attach(geometry, kTriangleGeometry, options.embree_quality);
   }
+  if (!flat.spheres.empty())
+    impl_->attach(impl_->new_user_geometry<kSphereGeometry>(flat.spheres.size(), &sphere_bounds), kSphereGeometry,
+                  options.embree_quality);
   rtcCommitScene(impl_->scene);
   impl_->throw_if_failed("building the Embree scene");
 }
@@ -256,29 +314,20 @@ EmbreeAccel::EmbreeAccel(const FlatScene& flat, const AccelOptions& options) : i
 EmbreeAccel::~EmbreeAccel() = default;
 
 Hit EmbreeAccel::intersect(const Ray& ray) const {
+  HitContext context;
+  rtcInitIntersectContext(&context.embree);
+  context.embree.filter = &order_hits;
+  context.best_t = ray.tfar;
+  context.best_prim = RTC_INVALID_GEOMETRY_ID;
   RTCRayHit rayhit;
   fill_ray(ray, rayhit.ray);
   rayhit.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rayhit.hit.primID = RTC_INVALID_GEOMETRY_ID;
   rayhit.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-  if (impl_->kernel == EmbreeKernel::watertight) {
-    WatertightHitContext context;
-    rtcInitIntersectContext(&context.embree);
-    context.best_t = ray.tfar;
-    context.best_prim = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(impl_->scene, &context.embree, &rayhit);
-    if (context.best_prim == RTC_INVALID_GEOMETRY_ID) return Hit{};
-    return Hit{static_cast<float>(context.best_t), static_cast<float>(context.best_b1),
-               static_cast<float>(context.best_b2), context.best_prim};
-  }
-  OrderedHitContext context;
-  rtcInitIntersectContext(&context.embree);
-  context.embree.filter = &order_hits;
-  context.best_t = ray.tfar;
-  context.best_prim = RTC_INVALID_GEOMETRY_ID;
   rtcIntersect1(impl_->scene, &context.embree, &rayhit);
-  if (rayhit.hit.geomID == RTC_INVALID_GEOMETRY_ID) return Hit{};
-  return Hit{context.best_t, rayhit.hit.u, rayhit.hit.v, rayhit.hit.primID};
+  if (context.best_prim == RTC_INVALID_GEOMETRY_ID) return Hit{};
+  return Hit{static_cast<float>(context.best_t), static_cast<float>(context.best_b1),
+             static_cast<float>(context.best_b2), context.best_prim};
 }
 
 bool EmbreeAccel::occluded(const Ray& ray) const {

@@ -1,6 +1,7 @@
 #include "rt/accel/reference_accel.h"
 
 #include <cmath>
+#include <utility>
 
 namespace rt {
 
@@ -96,7 +97,34 @@ bool intersect_triangle_watertight(const Vec3d& origin, const Vec3d& direction, 
   return true;
 }
 
-ReferenceAccel::ReferenceAccel(const FlatScene& scene, ReferenceTest test) : test_(test) {
+bool intersect_sphere(const Vec3d& origin, const Vec3d& direction, double tnear, double tfar, const FlatSphere& sphere,
+                      double& t) {
+  const Vec3d o(sphere.object_from_world * Vec4d(origin, 1.0));
+  const Vec3d d = Mat3d(sphere.object_from_world) * direction;
+  const double a = glm::dot(d, d);
+  if (!(a > 0.0) || !std::isfinite(a)) return false;
+  const double half_b = glm::dot(o, d);
+  const Vec3d f = o - (half_b / a) * d;
+  const double discriminant = a * (1.0 - glm::dot(f, f));  // = half_b^2 - a c
+  if (!(discriminant >= 0.0)) return false;
+  const double c = glm::dot(o, o) - 1.0;
+  const double q = -(half_b + std::copysign(std::sqrt(discriminant), half_b));
+  // q = 0 only when half_b = 0 and the discriminant is 0: a tangent ray whose origin is on the
+  // sphere, touching it at t = 0.
+  double t0 = q != 0.0 ? c / q : 0.0, t1 = q / a;
+  if (t0 > t1) std::swap(t0, t1);
+  if (t0 >= tnear && t0 <= tfar) {
+    t = t0;
+    return true;
+  }
+  if (t1 >= tnear && t1 <= tfar) {
+    t = t1;
+    return true;
+  }
+  return false;
+}
+
+ReferenceAccel::ReferenceAccel(const FlatScene& scene, ReferenceTest test) : test_(test), spheres_(scene.spheres) {
   triangles_.reserve(scene.triangle_count());
   for (const Vec3u& tri : scene.triangles)
     triangles_.push_back({Vec3d(scene.positions[tri.x]), Vec3d(scene.positions[tri.y]), Vec3d(scene.positions[tri.z])});
@@ -112,17 +140,25 @@ bool ReferenceAccel::intersect_one(const TriangleD& tri, const Vec3d& origin, co
 Hit ReferenceAccel::intersect(const Ray& ray) const {
   const Vec3d origin(ray.origin), direction(ray.direction);
   TriangleHitD best{double(ray.tfar), 0.0, 0.0};
-  std::uint32_t best_index = kNoTriangle;
+  std::uint32_t best_index = kNoPrimitive;
   for (std::size_t i = 0; i < triangles_.size(); ++i) {
     TriangleHitD hit;
     // Later triangles must be strictly closer to replace a hit, so equal t keeps the lowest index.
     if (intersect_one(triangles_[i], origin, direction, ray.tnear, best.t, hit) &&
-        (best_index == kNoTriangle || hit.t < best.t)) {
+        (best_index == kNoPrimitive || hit.t < best.t)) {
       best = hit;
       best_index = static_cast<std::uint32_t>(i);
     }
   }
-  if (best_index == kNoTriangle) return Hit{};
+  for (std::size_t s = 0; s < spheres_.size(); ++s) {
+    double t;
+    if (intersect_sphere(origin, direction, ray.tnear, best.t, spheres_[s], t) &&
+        (best_index == kNoPrimitive || t < best.t)) {
+      best = {t, 0.0, 0.0};
+      best_index = static_cast<std::uint32_t>(triangles_.size() + s);
+    }
+  }
+  if (best_index == kNoPrimitive) return Hit{};
   return Hit{static_cast<float>(best.t), static_cast<float>(best.b1), static_cast<float>(best.b2), best_index};
 }
 
@@ -131,6 +167,9 @@ bool ReferenceAccel::occluded(const Ray& ray) const {
   TriangleHitD hit;
   for (const TriangleD& tri : triangles_)
     if (intersect_one(tri, origin, direction, ray.tnear, ray.tfar, hit)) return true;
+  double t;
+  for (const FlatSphere& sphere : spheres_)
+    if (intersect_sphere(origin, direction, ray.tnear, ray.tfar, sphere, t)) return true;
   return false;
 }
 

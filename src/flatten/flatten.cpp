@@ -1,6 +1,8 @@
 #include "rt/flatten/flatten.h"
 
+#include <algorithm>
 #include <cmath>
+#include <memory>
 #include <vector>
 
 #include <fmt/format.h>
@@ -23,6 +25,27 @@ bool finite(const Vec3f& v) { return std::isfinite(v.x) && std::isfinite(v.y) &&
 std::string node_label(const Scene& scene, std::uint32_t index) {
   const std::string& name = scene.nodes[index].name;
   return fmt::format("node '{}'", name.empty() ? std::to_string(index) : name);
+}
+
+// world_from_object of the unit sphere standing for `sphere` in its node's space.
+Mat4d unit_sphere_to_node(const Sphere& sphere) {
+  Mat4d m(sphere.radius);
+  m[3] = Vec4d(sphere.center, 1.0);
+  return m;
+}
+
+void append_sphere(const Scene& scene, std::uint32_t node_index, const Model& model, const Mat4d& world_from_node,
+                   FlatScene& flat) {
+  FlatSphere sphere;
+  sphere.world_from_object = world_from_node * unit_sphere_to_node(*model.sphere);
+  const Mat3d linear(sphere.world_from_object);
+  const double det = glm::determinant(linear);
+  if (!(std::abs(det) > 0.0) || !std::isfinite(det))
+    throw InputError(scene.source, node_label(scene, node_index), "transform is singular or not finite");
+  sphere.object_from_world = glm::inverse(sphere.world_from_object);
+  sphere.normal_from_object = glm::transpose(glm::inverse(linear));
+  sphere.material = model.material;
+  flat.spheres.push_back(sphere);
 }
 
 void append_model(const Scene& scene, std::uint32_t node_index, const Model& model, const Mat4d& world_from_object,
@@ -69,15 +92,26 @@ void append_model(const Scene& scene, std::uint32_t node_index, const Model& mod
 
 }  // namespace
 
-FlatScene flatten_scene(const Scene& scene) {
+FlatScene flatten_scene(const Scene& scene, const FlattenOptions& options) {
   FlatScene flat;
   if (scene.nodes.empty()) return flat;
+  if (options.sphere_tessellation != 0 && options.sphere_tessellation < 3)
+    throw InputError(fmt::format("sphere tessellation must be 0 (analytic) or >= 3 slices, not {}",
+                                 options.sphere_tessellation));
+  // One unit-sphere mesh shared by every tessellated sphere; each model's sphere transform is
+  // folded into its world_from_object.
+  std::shared_ptr<const TriangleMesh> unit_sphere_mesh;
+  if (options.sphere_tessellation > 0)
+    unit_sphere_mesh = std::make_shared<const TriangleMesh>(
+        make_sphere_mesh(1.0, options.sphere_tessellation, std::max(2, options.sphere_tessellation / 2)));
 
   std::size_t vertex_total = 0, triangle_total = 0;  // reserve() hint; a node reached twice adds more
   for (const Node& node : scene.nodes)
     for (const Model& model : node.models) {
-      vertex_total += model.mesh->positions.size();
-      triangle_total += model.mesh->triangles.size();
+      const TriangleMesh* mesh = model.mesh ? model.mesh.get() : unit_sphere_mesh.get();
+      if (!mesh) continue;
+      vertex_total += mesh->positions.size();
+      triangle_total += mesh->triangles.size();
     }
   flat.positions.reserve(vertex_total + 1);
   flat.normals.reserve(vertex_total);
@@ -89,7 +123,16 @@ FlatScene flatten_scene(const Scene& scene) {
     const StackEntry entry = stack.back();
     stack.pop_back();
     const Node& node = scene.nodes[entry.node];
-    for (const Model& model : node.models) append_model(scene, entry.node, model, entry.world_from_node, flat);
+    for (const Model& model : node.models) {
+      if (!model.sphere) {
+        append_model(scene, entry.node, model, entry.world_from_node, flat);
+      } else if (unit_sphere_mesh) {
+        const Model tessellated{unit_sphere_mesh, model.material};
+        append_model(scene, entry.node, tessellated, entry.world_from_node * unit_sphere_to_node(*model.sphere), flat);
+      } else {
+        append_sphere(scene, entry.node, model, entry.world_from_node, flat);
+      }
+    }
     // Push in reverse so children are visited in file order (keeps triangle ids predictable).
     for (auto child = node.children.rbegin(); child != node.children.rend(); ++child) {
       if (entry.depth + 2 > scene.nodes.size())  // path of depth + 2 nodes must repeat one

@@ -53,14 +53,15 @@ class SceneReader {
   Camera read_camera(const json& value, const std::string& where) const;
   Material read_material(const json& value, const std::string& where, const std::string& name) const;
   Light read_light(const json& value, const std::string& where) const;
-  std::shared_ptr<const TriangleMesh> read_geometry(const json& value, const std::string& where);
+  // The geometry of a model: Model::mesh or Model::sphere set, the material left to the caller.
+  Model read_geometry(const json& value, const std::string& where);
   Mat4d read_transform(const json& node, const std::string& where) const;
   std::uint32_t read_node(const json& value, const std::string& where, Scene& scene);
 
   std::string path_;
   fs::path directory_;
   std::map<std::string, std::uint32_t> material_index_;
-  std::map<std::string, std::shared_ptr<const TriangleMesh>> named_geometry_;
+  std::map<std::string, Model> named_geometry_;
   std::map<std::string, std::shared_ptr<const TriangleMesh>> obj_cache_;
 };
 
@@ -203,7 +204,7 @@ Light SceneReader::read_light(const json& value, const std::string& where) const
   return light;
 }
 
-std::shared_ptr<const TriangleMesh> SceneReader::read_geometry(const json& value, const std::string& where) {
+Model SceneReader::read_geometry(const json& value, const std::string& where) {
   if (value.is_string()) {
     const std::string name = value.get<std::string>();
     auto it = named_geometry_.find(name);
@@ -215,22 +216,22 @@ std::shared_ptr<const TriangleMesh> SceneReader::read_geometry(const json& value
   const std::string type = read_string(value["type"], child(where, "type"));
   if (type == "cube") {
     check_keys(value, where, {"type"});
-    return std::make_shared<const TriangleMesh>(make_cube_mesh());
+    return Model{std::make_shared<const TriangleMesh>(make_cube_mesh())};
   }
   if (type == "sphere") {
     check_keys(value, where, {"type", "center", "radius", "slices", "stacks"});
     const double radius = value.contains("radius") ? read_number(value["radius"], child(where, "radius")) : 1.0;
     if (!(radius > 0)) fail(child(where, "radius"), "radius must be > 0");
+    const Vec3d center = value.contains("center") ? read_vec3(value["center"], child(where, "center")) : Vec3d(0.0);
+    // Exact (analytic) unless a tessellation is asked for by slices or stacks.
+    if (!value.contains("slices") && !value.contains("stacks")) return Model{nullptr, 0, Sphere{center, radius}};
     const int slices = value.contains("slices") ? read_int(value["slices"], child(where, "slices"), 3, 4096)
                                                 : kDefaultSphereSlices;
     const int stacks = value.contains("stacks") ? read_int(value["stacks"], child(where, "stacks"), 2, 2048)
                                                 : kDefaultSphereStacks;
     TriangleMesh mesh = make_sphere_mesh(radius, slices, stacks);
-    if (value.contains("center")) {
-      const Vec3d center = read_vec3(value["center"], child(where, "center"));
-      for (Vec3f& p : mesh.positions) p = Vec3f(Vec3d(p) + center);
-    }
-    return std::make_shared<const TriangleMesh>(std::move(mesh));
+    for (Vec3f& p : mesh.positions) p = Vec3f(Vec3d(p) + center);
+    return Model{std::make_shared<const TriangleMesh>(std::move(mesh))};
   }
   if (type == "mesh") {
     check_keys(value, where, {"type", "positions", "triangles", "normals"});
@@ -265,7 +266,7 @@ std::shared_ptr<const TriangleMesh> SceneReader::read_geometry(const json& value
     } else {
       compute_vertex_normals(mesh);
     }
-    return std::make_shared<const TriangleMesh>(std::move(mesh));
+    return Model{std::make_shared<const TriangleMesh>(std::move(mesh))};
   }
   if (type == "obj") {
     check_keys(value, where, {"type", "path"});
@@ -274,7 +275,7 @@ std::shared_ptr<const TriangleMesh> SceneReader::read_geometry(const json& value
     const std::string resolved = (directory_ / relative).lexically_normal().string();
     auto& cached = obj_cache_[resolved];
     if (!cached) cached = std::make_shared<const TriangleMesh>(load_obj_mesh(resolved));
-    return cached;
+    return Model{cached};
   }
   fail(child(where, "type"), fmt::format("unknown geometry type '{}' (expected cube, sphere, mesh or obj)", type));
 }
@@ -333,7 +334,9 @@ std::uint32_t SceneReader::read_node(const json& value, const std::string& where
       if (!models[i].contains("geometry")) fail(model_at, "missing key 'geometry'");
       if (!models[i].contains("material")) fail(model_at, "missing key 'material'");
       Model model;
-      model.mesh = read_geometry(models[i]["geometry"], child(model_at, "geometry"));
+      const Model geometry = read_geometry(models[i]["geometry"], child(model_at, "geometry"));
+      model.mesh = geometry.mesh;
+      model.sphere = geometry.sphere;
       const std::string material = read_string(models[i]["material"], child(model_at, "material"));
       auto it = material_index_.find(material);
       if (it == material_index_.end())

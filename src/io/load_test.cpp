@@ -114,23 +114,9 @@ MaterialKey key_of(const Material& m) {
           m.specular.g, m.specular.b, m.emission.r, m.emission.g, m.emission.b, m.shininess};
 }
 
-// `sphere x y z r` in object space: a UV-sphere mesh of radius r centred at (x, y, z), smooth
-// analytic normals. The node above it carries the transform, so non-uniform scales make
-// ellipsoids (flatten_scene transforms normals by the inverse transpose).
-// TEMPORARY: analytic (ray-quadric) spheres will replace this tessellation; until then the
-// silhouettes and shading of spheres differ slightly from the course's exact spheres.
-std::shared_ptr<const TriangleMesh> make_test_sphere_model(const Vec3d& center, double radius, int slices, int stacks) {
-  TriangleMesh mesh = make_sphere_mesh(radius, slices, stacks);
-  for (Vec3f& p : mesh.positions) p = Vec3f(Vec3d(p) + center);
-  return std::make_shared<const TriangleMesh>(std::move(mesh));
-}
-
 class TestSceneParser {
  public:
-  TestSceneParser(std::string path, const TestSceneOptions& options) : path_(std::move(path)), options_(options) {
-    if (options_.sphere_slices < 3 || options_.sphere_stacks < 2)
-      throw std::invalid_argument("sphere tessellation needs slices >= 3 and stacks >= 2");
-  }
+  explicit TestSceneParser(std::string path) : path_(std::move(path)) {}
 
   Scene parse(const std::string& text);
 
@@ -153,7 +139,6 @@ class TestSceneParser {
   void close_open_mesh();
 
   std::string path_;
-  TestSceneOptions options_;
   std::size_t line_ = 0;
   std::string_view command_name_;
   std::vector<std::string_view> args_;
@@ -168,7 +153,6 @@ class TestSceneParser {
   std::vector<Vec3f> vertices_;
   std::vector<std::pair<Vec3f, Vec3f>> vertex_normals_;  // position, unit normal
   std::map<MaterialKey, std::uint32_t> material_index_;
-  std::map<std::array<double, 4>, std::shared_ptr<const TriangleMesh>> sphere_meshes_;
 
   // Consecutive triangles with the same transform and material share one mesh under one node.
   struct OpenMesh {
@@ -271,10 +255,10 @@ void TestSceneParser::add_triangle(const std::array<Vec3f, 3>& positions, const 
 void TestSceneParser::add_sphere(const Vec3d& center, double radius) {
   close_open_mesh();
   const std::uint32_t material = current_material();
-  auto& mesh = sphere_meshes_[{center.x, center.y, center.z, radius}];
-  if (!mesh) mesh = make_test_sphere_model(center, radius, options_.sphere_slices, options_.sphere_stacks);
+  // An exact sphere in the node's object space; the node carries the current transform, so
+  // non-uniform scales make ellipsoids.
   const std::uint32_t node = add_node(fmt::format("sphere (line {})", line_));
-  scene_.nodes[node].models.push_back(Model{mesh, material});
+  scene_.nodes[node].models.push_back(Model{nullptr, material, Sphere{center, radius}});
 }
 
 void TestSceneParser::execute(const CommandSpec& spec) {
@@ -514,12 +498,12 @@ std::string read_text_file(const std::string& path) {
 
 }  // namespace
 
-Scene parse_test_scene(const std::string& text, const std::string& path, const TestSceneOptions& options) {
-  return TestSceneParser(path, options).parse(text);
+Scene parse_test_scene(const std::string& text, const std::string& path) {
+  return TestSceneParser(path).parse(text);
 }
 
-Scene load_test_scene(const std::string& path, const TestSceneOptions& options) {
-  return parse_test_scene(read_text_file(path), path, options);
+Scene load_test_scene(const std::string& path) {
+  return parse_test_scene(read_text_file(path), path);
 }
 
 }  // namespace rt

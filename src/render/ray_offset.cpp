@@ -81,6 +81,24 @@ SurfacePoint make_surface_point(const Vec3d& p0, const Vec3d& p1, const Vec3d& p
   return surface;
 }
 
+SurfacePoint make_sphere_surface_point(const FlatSphere& sphere, const Vec3d& origin, const Vec3d& direction,
+                                       double t) {
+  const Vec3d o(sphere.object_from_world * Vec4d(origin, 1.0));
+  const Vec3d d = Mat3d(sphere.object_from_world) * direction;
+  Vec3d p = o + t * d;  // object space, on the unit sphere up to the error of t
+  const double length = glm::length(p);
+  p = length > 0.0 ? p / length : Vec3d(0.0, 0.0, 1.0);
+  SurfacePoint surface;
+  surface.point = Vec3d(sphere.world_from_object * Vec4d(p, 1.0));
+  const Vec3d n = sphere.normal_from_object * p;
+  surface.geometric_normal = glm::normalize(n);
+  const Mat3d linear(sphere.world_from_object);
+  const double largest_axis = std::max({glm::length(linear[0]), glm::length(linear[1]), glm::length(linear[2])});
+  surface.error_bound = kSafety * (kFloatRoundoff * std::sqrt(3.0) * max_abs_component(surface.point) +
+                                   0x1p-40 * (max_abs_component(surface.point) + largest_axis));
+  return surface;
+}
+
 Vec3f offset_ray_origin(const RayOffset& policy, const SurfacePoint& surface, const Vec3d& direction) {
   const Vec3d& n = surface.geometric_normal;
   const Vec3d side = glm::dot(n, direction) >= 0.0 ? n : -n;

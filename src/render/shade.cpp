@@ -17,19 +17,26 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
   if (!hit.found()) return context.scene.settings.background;
 
   // Surface at the hit, world space, double. The point is interpolated from the triangle's
-  // vertices rather than taken as o + t d: it then lies on the triangle up to rounding,
-  // whatever error t carries.
+  // vertices (or projected onto the sphere) rather than taken as o + t d: it then lies on the
+  // surface up to rounding, whatever error t carries.
   const FlatScene& flat = context.flat;
-  const Vec3u tri = flat.triangles[hit.triangle];
-  const Vec3d p0(flat.positions[tri.x]), p1(flat.positions[tri.y]), p2(flat.positions[tri.z]);
-  const double b1 = hit.u, b2 = hit.v, b0 = 1.0 - b1 - b2;
-  const SurfacePoint surface = make_surface_point(p0, p1, p2, b1, b2);
+  SurfacePoint surface;
+  Vec3d normal;  // shading normal, unit length
+  if (flat.is_sphere(hit.primitive)) {
+    surface = make_sphere_surface_point(flat.sphere_of(hit.primitive), Vec3d(ray.origin), Vec3d(ray.direction), hit.t);
+    normal = surface.geometric_normal;
+  } else {
+    const Vec3u tri = flat.triangles[hit.primitive];
+    const Vec3d p0(flat.positions[tri.x]), p1(flat.positions[tri.y]), p2(flat.positions[tri.z]);
+    const double b1 = hit.u, b2 = hit.v, b0 = 1.0 - b1 - b2;
+    surface = make_surface_point(p0, p1, p2, b1, b2);
+    normal = glm::normalize(b0 * Vec3d(flat.normals[tri.x]) + b1 * Vec3d(flat.normals[tri.y]) +
+                            b2 * Vec3d(flat.normals[tri.z]));
+  }
   const Vec3d& point = surface.point;
-  const Vec3d normal = glm::normalize(b0 * Vec3d(flat.normals[tri.x]) + b1 * Vec3d(flat.normals[tri.y]) +
-                                      b2 * Vec3d(flat.normals[tri.z]));
   const Vec3d direction = glm::normalize(Vec3d(ray.direction));
   const Vec3d to_eye = -direction;
-  const Material& material = context.scene.materials[flat.material_ids[hit.triangle]];
+  const Material& material = context.scene.materials[flat.material_of(hit.primitive)];
   const Vec3d ambient(material.ambient), diffuse(material.diffuse), specular(material.specular);
 
   Vec3d radiance(material.emission);

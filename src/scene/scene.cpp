@@ -80,9 +80,17 @@ void validate_scene(const Scene& scene) {
     for (std::uint32_t child : node.children)
       if (child >= scene.nodes.size()) throw InputError(scene.source, where, "child index out of range");
     for (const Model& model : node.models) {
-      if (!model.mesh) throw InputError(scene.source, where, "model has no geometry");
+      if (!model.mesh == !model.sphere)
+        throw InputError(scene.source, where, "model must have exactly one of a mesh and a sphere");
       if (model.material >= scene.materials.size())
         throw InputError(scene.source, where, "model material index out of range");
+      if (model.sphere) {
+        const Sphere& sphere = *model.sphere;
+        if (!std::isfinite(sphere.center.x) || !std::isfinite(sphere.center.y) || !std::isfinite(sphere.center.z) ||
+            !(sphere.radius > 0.0) || !std::isfinite(sphere.radius))
+          throw InputError(scene.source, where, "sphere needs a finite centre and a finite radius > 0");
+        continue;
+      }
       const TriangleMesh& mesh = *model.mesh;
       if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size())
         throw InputError(scene.source, where, "mesh has a different number of normals and positions");

@@ -14,7 +14,7 @@
 namespace rt {
 
 inline constexpr float kInfinity = std::numeric_limits<float>::infinity();
-inline constexpr std::uint32_t kNoTriangle = 0xFFFFFFFFu;
+inline constexpr std::uint32_t kNoPrimitive = 0xFFFFFFFFu;
 
 // A ray in world space, float32 (exactly what Embree receives). direction need not be unit
 // length; t is measured in multiples of it. Valid hits have tnear <= t <= tfar.
@@ -25,20 +25,23 @@ struct Ray {
   float tfar = kInfinity;
 };
 
-// Closest hit: ray parameter t and barycentrics (u, v) of triangle vertices 1 and 2, so the
-// point is (1 - u - v) p0 + u p1 + v p2. triangle == kNoTriangle (and t == inf) on a miss.
+// Closest hit: ray parameter t and the primitive hit, numbered as FlatScene numbers them (triangles
+// first, then spheres). For a triangle, (u, v) are the barycentrics of vertices 1 and 2, so the
+// point is (1 - u - v) p0 + u p1 + v p2; for a sphere they are 0. primitive == kNoPrimitive (and
+// t == inf) on a miss.
 struct Hit {
   float t = kInfinity;
   float u = 0.0f;
   float v = 0.0f;
-  std::uint32_t triangle = kNoTriangle;
+  std::uint32_t primitive = kNoPrimitive;
 
-  bool found() const { return triangle != kNoTriangle; }
+  bool found() const { return primitive != kNoPrimitive; }
 };
 
-// embree: Embree 3, float32. reference: watertight ray/triangle test in double precision, brute
-// force. reference_barycentric: the seed's plain barycentric solve in double, brute force (kept to
-// show what the watertight formulation buys).
+// embree: Embree 3, float32 triangles (see EmbreeKernel). reference: watertight ray/triangle test
+// in double precision, brute force. reference_barycentric: the seed's plain barycentric solve in
+// double, brute force (kept to show what the watertight formulation buys). Spheres are intersected
+// by the same double-precision test (intersect_sphere) in every backend.
 enum class AccelKind { embree, reference, reference_barycentric };
 
 enum class EmbreeQuality { low, medium, high };
@@ -67,10 +70,10 @@ class Accel {
   virtual ~Accel() = default;
 
   // Closest intersection along the ray within [tnear, tfar]; a miss returns Hit{}. Among
-  // triangles hit at the same computed t the lowest triangle index wins, in every backend.
+  // primitives hit at the same computed t the lowest index wins, in every backend.
   virtual Hit intersect(const Ray& ray) const = 0;
 
-  // True when any triangle is hit within [tnear, tfar]. Cheaper than intersect().
+  // True when any primitive is hit within [tnear, tfar]. Cheaper than intersect().
   virtual bool occluded(const Ray& ray) const = 0;
 
   virtual std::string_view name() const = 0;

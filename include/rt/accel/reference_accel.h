@@ -32,10 +32,21 @@ bool intersect_triangle_barycentric(const Vec3d& origin, const Vec3d& direction,
 bool intersect_triangle_watertight(const Vec3d& origin, const Vec3d& direction, double tnear, double tfar,
                                    const Vec3d& p0, const Vec3d& p1, const Vec3d& p2, TriangleHitD& hit);
 
+// Ray against an analytic sphere (an ellipsoid in world space), in double precision: the ray is
+// mapped into the unit sphere's object space (the parameter t is unchanged by the affine map) and
+// |o + t d|^2 = 1 solved with the discriminant formed as a (1 - |f|^2), f = o - (o.d / a) d the
+// point of closest approach, and the smaller root taken from the larger by Vieta's formula, which
+// avoids the cancellations of the textbook b^2 - 4ac (Haines, Guenther and Akenine-Moller,
+// "Precision Improvements for Ray/Sphere Intersection", Ray Tracing Gems, 2019, ch. 7). Returns
+// the nearest root in [tnear, tfar] in `t`; a zero direction never hits.
+bool intersect_sphere(const Vec3d& origin, const Vec3d& direction, double tnear, double tfar, const FlatSphere& sphere,
+                      double& t);
+
 enum class ReferenceTest { watertight, barycentric };
 
 // Holds double-precision copies of the float32 vertices Embree sees (exactly representable, so
-// all backends intersect the same triangles). Among equal t the lowest triangle index wins.
+// all backends intersect the same triangles) and of the spheres. Among equal t the lowest
+// primitive index wins.
 class ReferenceAccel final : public Accel {
  public:
   ReferenceAccel(const FlatScene& scene, ReferenceTest test);
@@ -55,6 +66,7 @@ class ReferenceAccel final : public Accel {
 
   ReferenceTest test_;
   std::vector<TriangleD> triangles_;
+  std::vector<FlatSphere> spheres_;
 };
 
 }  // namespace rt

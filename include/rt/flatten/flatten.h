@@ -10,7 +10,19 @@
 
 namespace rt {
 
-// All geometry of a scene in world space, float32.
+// An analytic sphere after flattening: the unit sphere at the object-space origin mapped by
+// world_from_object (which includes the sphere's centre and radius), an ellipsoid in general.
+// Double precision; intersect_sphere works in the unit sphere's space.
+struct FlatSphere {
+  Mat4d world_from_object{1.0};
+  Mat4d object_from_world{1.0};
+  Mat3d normal_from_object{1.0};  // inverse transpose of world_from_object's linear part
+  std::uint32_t material = 0;     // index into Scene::materials
+};
+
+// All geometry of a scene in world space: float32 triangles and double-precision spheres.
+// Primitives are numbered triangles first (0 .. T-1), then spheres (T .. T+S-1); Hit::primitive
+// uses these numbers and ties go to the lowest.
 // positions.capacity() > positions.size(): one spare Vec3f past the end lets Embree read the
 // last vertex with a 16-byte load without leaving the allocation.
 struct FlatScene {
@@ -18,9 +30,21 @@ struct FlatScene {
   std::vector<Vec3f> normals;                // world space, unit length, one per position
   std::vector<Vec3u> triangles;              // indices into positions, counter-clockwise
   std::vector<std::uint32_t> material_ids;   // one per triangle, index into Scene::materials
+  std::vector<FlatSphere> spheres;
   std::size_t degenerate_triangles_dropped = 0;  // zero-area triangles left out (see flatten_scene)
 
   std::size_t triangle_count() const { return triangles.size(); }
+  bool is_sphere(std::uint32_t primitive) const { return primitive >= triangles.size(); }
+  const FlatSphere& sphere_of(std::uint32_t primitive) const { return spheres[primitive - triangles.size()]; }
+  std::uint32_t material_of(std::uint32_t primitive) const {
+    return is_sphere(primitive) ? sphere_of(primitive).material : material_ids[primitive];
+  }
+};
+
+// How flatten_scene treats spheres: 0 keeps them analytic; N >= 3 tessellates every sphere into a
+// UV sphere of N slices and max(2, N / 2) stacks (to compare against the exact quadric).
+struct FlattenOptions {
+  int sphere_tessellation = 0;
 };
 
 // Walks the graph from scene.root depth-first with an explicit stack (no recursion, so depth is
@@ -31,7 +55,8 @@ struct FlatScene {
 // (see compute_vertex_normals).
 // Triangles of zero area in world space (repeated or collinear float32 vertices) can never be hit
 // and have no normal; they are dropped and counted in degenerate_triangles_dropped.
+// Spheres become FlatSpheres (or meshes, see FlattenOptions) with the same accumulated transform.
 // Throws InputError on a cycle, a singular transform or non-finite results.
-FlatScene flatten_scene(const Scene& scene);
+FlatScene flatten_scene(const Scene& scene, const FlattenOptions& options = {});
 
 }  // namespace rt

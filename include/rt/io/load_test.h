@@ -10,20 +10,13 @@
 
 namespace rt {
 
-struct TestSceneOptions {
-  // Tessellation of `sphere` primitives (UV sphere: 2 * slices * (stacks - 1) triangles each).
-  // Temporary: analytic spheres will replace the tessellated ones.
-  int sphere_slices = 128;
-  int sphere_stacks = 64;
-};
-
 // Parses the text of a .test scene; `path` names the source in messages. The result is
 // validated. Throws InputError "PATH:LINE: reason" for the first problem found (unknown command,
 // wrong parameter count, non-numeric or non-finite number, `size` not first, a stack underflow,
 // vertex indices out of range, a bad camera, ...).
-Scene parse_test_scene(const std::string& text, const std::string& path, const TestSceneOptions& options = {});
+Scene parse_test_scene(const std::string& text, const std::string& path);
 
 // Reads and parses a .test file (see parse_test_scene). Throws InputError if it cannot be read.
-Scene load_test_scene(const std::string& path, const TestSceneOptions& options = {});
+Scene load_test_scene(const std::string& path);
 
 }  // namespace rt

@@ -35,6 +35,14 @@ struct SurfacePoint {
 // zero normal.
 SurfacePoint make_surface_point(const Vec3d& p0, const Vec3d& p1, const Vec3d& p2, double b1, double b2);
 
+// The point where a ray (world space; origin and direction as traced, t from the Hit) meets an
+// analytic sphere, with its outward unit normal as geometric normal. The point is computed in the
+// sphere's object space and projected back onto the unit sphere (pbrt's reprojection), so it lies
+// on the surface to double rounding whatever error t carries. error_bound: the float32 rounding of
+// an origin near the point plus a generous bound (2^-40 relative) on the double-precision sphere
+// test, times the same safety factor as for triangles.
+SurfacePoint make_sphere_surface_point(const FlatSphere& sphere, const Vec3d& origin, const Vec3d& direction, double t);
+
 // Origin (float32, world space) for a ray leaving `surface` along `direction`: the point moved
 // along the geometric normal to the side `direction` points to, far enough that no float32 or
 // double intersector can find the triangle it left at t >= 0, and rounded away from the surface.

@@ -53,11 +53,20 @@ struct TriangleMesh {
   std::vector<Vec3u> triangles;
 };
 
-// A model is a piece of geometry drawn with one material (index into Scene::materials).
-// Meshes are shared so that one loaded mesh can be instanced by many models.
+// An exact sphere in object space. Under a node's transform it becomes an ellipsoid in general;
+// it is intersected as a quadric, not tessellated (unless flattening is asked to tessellate).
+struct Sphere {
+  Vec3d center{0.0};
+  double radius = 1.0;  // > 0, object-space units
+};
+
+// A model is a piece of geometry, a triangle mesh or a sphere (exactly one of the two), drawn
+// with one material (index into Scene::materials). Meshes are shared so that one loaded mesh can
+// be instanced by many models.
 struct Model {
   std::shared_ptr<const TriangleMesh> mesh;
   std::uint32_t material = 0;
+  std::optional<Sphere> sphere = std::nullopt;
 };
 
 // A graph node. parent_from_node maps this node's space to its parent's (double precision).
