@@ -112,17 +112,6 @@ struct UserGeometryData {
   float box_padding = 0.0f;  // world-space units, added on every side of each primitive's box
 };
 
-// World-space bounds of a sphere: the unit sphere under M = world_from_object reaches
-// +-sqrt(sum_j M_ij^2) from the centre along world axis i.
-void sphere_box(const FlatSphere& sphere, Vec3d& lower, Vec3d& upper) {
-  const Mat4d& m = sphere.world_from_object;
-  const Vec3d centre(m[3]);
-  const Vec3d half(glm::length(Vec3d(m[0][0], m[1][0], m[2][0])), glm::length(Vec3d(m[0][1], m[1][1], m[2][1])),
-                   glm::length(Vec3d(m[0][2], m[1][2], m[2][2])));
-  lower = centre - half;
-  upper = centre + half;
-}
-
 // Embree traverses user geometry with its fast, non-conservative box test (Embree 3.13 compiles
 // BVH4VirtualIntersector1 with robust = false whatever the scene flags say), so a ray through a
 // triangle's vertex or edge can be culled at a box face it only touches: unpadded, 4,381 of the
@@ -139,7 +128,7 @@ float user_box_padding(const FlatScene& flat) {
   for (const Vec3f& p : flat.positions) largest = std::max(largest, max_abs_component(Vec3d(p)));
   for (const FlatSphere& sphere : flat.spheres) {
     Vec3d lower, upper;
-    sphere_box(sphere, lower, upper);
+    sphere_bounds(sphere, lower, upper);
     largest = std::max({largest, max_abs_component(lower), max_abs_component(upper)});
   }
   return static_cast<float>(largest * 0x1p-18);
@@ -161,7 +150,7 @@ void triangle_bounds(const RTCBoundsFunctionArguments* args) {
 void sphere_bounds(const RTCBoundsFunctionArguments* args) {
   const FlatScene& flat = *static_cast<const UserGeometryData*>(args->geometryUserPtr)->flat;
   Vec3d lower, upper;
-  sphere_box(flat.spheres[args->primID], lower, upper);
+  sphere_bounds(flat.spheres[args->primID], lower, upper);
   // Rounded outwards to float32; the padding covers the rounding of the box itself.
   Vec3f lo, hi;
   for (int i = 0; i < 3; ++i) {

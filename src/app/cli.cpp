@@ -39,6 +39,7 @@ struct RenderArgs {
   std::string embree_robust = "on";
   std::string embree_quality = "medium";
   std::string embree_kernel = "native";
+  int sphere_tessellation = 0;
   std::string ray_offset = "robust";
   int threads = 0;
   std::string stats_path;
@@ -83,7 +84,9 @@ int run_render(const RenderArgs& args) {
   const double load_s = seconds_since(start);
 
   auto phase_start = Clock::now();
-  const FlatScene flat = flatten_scene(scene);
+  FlattenOptions flatten_options;
+  flatten_options.sphere_tessellation = args.sphere_tessellation;
+  const FlatScene flat = flatten_scene(scene, flatten_options);
   const double flatten_s = seconds_since(phase_start);
   warn_about_dropped_triangles(scene, flat, args.quiet);
 
@@ -119,6 +122,8 @@ int run_render(const RenderArgs& args) {
     stats["image"] = {{"width", scene.settings.width}, {"height", scene.settings.height}};
     stats["max_depth"] = scene.settings.max_depth;
     stats["triangles"] = flat.triangle_count();
+    stats["spheres"] = flat.spheres.size();
+    stats["sphere_tessellation"] = args.sphere_tessellation;
     stats["degenerate_triangles_dropped"] = flat.degenerate_triangles_dropped;
     stats["lights"] = scene.lights.size();
     stats["rays"] = {{"camera", result.rays.camera},
@@ -131,9 +136,11 @@ int run_render(const RenderArgs& args) {
     write_text_file_atomically(args.stats_path, stats.dump(2) + "\n");
   }
   if (!args.quiet)
-    fmt::print("{}: {}x{}, {} triangles, {} lights, {:.3f} s render, {:.3f} s total, {:.2f} Mrays/s ({}, {} threads)\n",
-               output, scene.settings.width, scene.settings.height, flat.triangle_count(), scene.lights.size(),
-               result.seconds, total_s, mrays, to_string(accel_kind), threads);
+    fmt::print(
+        "{}: {}x{}, {} triangles, {} spheres, {} lights, {:.3f} s render, {:.3f} s total, {:.2f} Mrays/s ({}, {} "
+        "threads)\n",
+        output, scene.settings.width, scene.settings.height, flat.triangle_count(), flat.spheres.size(),
+        scene.lights.size(), result.seconds, total_s, mrays, to_string(accel_kind), threads);
   return 0;
 }
 
@@ -142,10 +149,16 @@ int run_info(const std::string& scene_path) {
   const FlatScene flat = flatten_scene(scene);
   std::size_t models = 0;
   for (const Node& node : scene.nodes) models += node.models.size();
-  Vec3f lo(kInfinity), hi(-kInfinity);
+  Vec3d lo(kInfinity), hi(-kInfinity);
   for (const Vec3f& p : flat.positions) {
-    lo = glm::min(lo, p);
-    hi = glm::max(hi, p);
+    lo = glm::min(lo, Vec3d(p));
+    hi = glm::max(hi, Vec3d(p));
+  }
+  for (const FlatSphere& sphere : flat.spheres) {
+    Vec3d lower, upper;
+    sphere_bounds(sphere, lower, upper);
+    lo = glm::min(lo, lower);
+    hi = glm::max(hi, upper);
   }
   const Camera& c = scene.camera;
   fmt::print("scene       {}\n", scene.source);
@@ -155,10 +168,10 @@ int run_info(const std::string& scene_path) {
   fmt::print("camera      eye ({}, {}, {}), target ({}, {}, {}), up ({}, {}, {}), fovy {} deg\n", c.eye.x, c.eye.y,
              c.eye.z, c.target.x, c.target.y, c.target.z, c.up.x, c.up.y, c.up.z, c.fovy_degrees);
   fmt::print("graph       {} nodes, {} models\n", scene.nodes.size(), models);
-  fmt::print("geometry    {} triangles, {} vertices, {} degenerate triangles dropped\n", flat.triangle_count(),
-             flat.positions.size(), flat.degenerate_triangles_dropped);
-  if (!flat.positions.empty())
-    fmt::print("bounds      ({}, {}, {}) .. ({}, {}, {})\n", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
+  fmt::print("geometry    {} triangles, {} vertices, {} degenerate triangles dropped, {} spheres (exact)\n",
+             flat.triangle_count(), flat.positions.size(), flat.degenerate_triangles_dropped, flat.spheres.size());
+  if (!flat.positions.empty() || !flat.spheres.empty())
+    fmt::print("bounds      ({:.7g}, {:.7g}, {:.7g}) .. ({:.7g}, {:.7g}, {:.7g})\n", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
   fmt::print("materials   {}\n", scene.materials.size());
   for (const Material& m : scene.materials)
     fmt::print("  {:<16} diffuse ({}, {}, {}), specular ({}, {}, {}), shininess {}\n", m.name, m.diffuse.r,
@@ -208,6 +221,15 @@ int run_cli(int argc, char** argv) {
                      "Triangle test inside Embree's BVH: native (Embree's, fastest) or watertight (the reference's "
                      "double-precision watertight test: no ray slips through a closed mesh, slower)")
       ->check(CLI::IsMember({"native", "watertight"}))
+      ->capture_default_str();
+  render->add_option("--sphere-tessellation", render_args.sphere_tessellation,
+                     "Spheres: 0 = exact quadrics, N >= 3 = UV spheres of N slices and N/2 stacks (for comparison)")
+      ->check(CLI::Validator(
+          [](std::string& value) {
+            const int n = std::atoi(value.c_str());
+            return n == 0 || (n >= 3 && n <= 4096) ? std::string() : "must be 0 or 3..4096";
+          },
+          "0 or 3..4096"))
       ->capture_default_str();
   render->add_option("--ray-offset", render_args.ray_offset,
                      "Self-intersection policy of secondary rays: robust (scale-independent error bound) "

@@ -92,6 +92,15 @@ void append_model(const Scene& scene, std::uint32_t node_index, const Model& mod
 
 }  // namespace
 
+void sphere_bounds(const FlatSphere& sphere, Vec3d& lower, Vec3d& upper) {
+  const Mat4d& m = sphere.world_from_object;
+  const Vec3d centre(m[3]);
+  const Vec3d half(glm::length(Vec3d(m[0][0], m[1][0], m[2][0])), glm::length(Vec3d(m[0][1], m[1][1], m[2][1])),
+                   glm::length(Vec3d(m[0][2], m[1][2], m[2][2])));
+  lower = centre - half;
+  upper = centre + half;
+}
+
 FlatScene flatten_scene(const Scene& scene, const FlattenOptions& options) {
   FlatScene flat;
   if (scene.nodes.empty()) return flat;

@@ -20,6 +20,10 @@ struct FlatSphere {
   std::uint32_t material = 0;     // index into Scene::materials
 };
 
+// World-space axis-aligned bounds of a FlatSphere (double; exact up to rounding): the unit sphere
+// under M = world_from_object reaches +-sqrt(sum_j M_ij^2) from the centre along world axis i.
+void sphere_bounds(const FlatSphere& sphere, Vec3d& lower, Vec3d& upper);
+
 // All geometry of a scene in world space: float32 triangles and double-precision spheres.
 // Primitives are numbered triangles first (0 .. T-1), then spheres (T .. T+S-1); Hit::primitive
 // uses these numbers and ties go to the lowest.
