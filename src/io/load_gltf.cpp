@@ -13,6 +13,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtc/type_ptr.hpp>
+#include <nlohmann/json.hpp>
 #include <tiny_gltf.h>
 
 #include "rt/core/error.h"
@@ -431,8 +432,8 @@ Material GltfReader::read_material(int index) {
 
   const Vec3d f0 = glm::mix(Vec3d(0.04), specular_base, metallic);
   const double alpha = roughness * roughness;
-  material.diffuse = Color(base * (1.0 - metallic));
-  material.specular = Color(f0);
+  material.diffuse = Color(base * (1.0 - metallic + metallic * roughness));
+  material.specular = Color(f0 * (1.0 - metallic * roughness));
   material.shininess = static_cast<float>(std::clamp(2.0 / std::max(alpha * alpha, 1e-8) - 2.0, 1.0, 1e4));
   material.reflection = Color(f0 * std::max(0.0, 1.0 - roughness / kMirrorRoughness));
 
@@ -554,16 +555,17 @@ void GltfReader::read_camera(const std::vector<Placed>& placed, Scene& scene) {
   }
 
   if (!chosen) {
-    // Frame the bounding sphere of the geometry from +z (glTF's front) with a 45 degree fovy.
+    // Frame the bounding sphere of the geometry from the front (+z in glTF), a little from the
+    // right and above, as glTF sample screenshots do; fovy 45 degrees.
     const bool empty = !(lo_.x <= hi_.x);
     const Vec3d center = empty ? Vec3d(0.0) : 0.5 * (lo_ + hi_);
     double radius = empty ? 1.0 : 0.5 * glm::length(hi_ - lo_);
     if (!(radius > 0.0)) radius = 1.0;
     scene.camera.fovy_degrees = 45.0;
     scene.camera.target = center;
-    scene.camera.eye = center + Vec3d(0.0, 0.0, 1.1 * radius / std::sin(22.5 * kPi / 180.0));
+    scene.camera.eye = center + glm::normalize(Vec3d(0.5, 0.4, 1.0)) * (1.1 * radius / std::sin(22.5 * kPi / 180.0));
     scene.camera.up = Vec3d(0.0, 1.0, 0.0);
-    notices_.push_back(fmt::format("{}: no camera: framing the scene's bounding box from +z", path_));
+    notices_.push_back(fmt::format("{}: no camera: framing the scene's bounding box from the front (+z), right and above", path_));
     return;
   }
   const tinygltf::Camera& source = gltf_.cameras[static_cast<std::size_t>(camera)];
@@ -698,13 +700,27 @@ Scene GltfReader::read() {
   return scene;
 }
 
-// tinygltf's first error line, with "buffer[N]" / "image[N]" turned into a JSON path.
+// tinygltf's first error line, with "buffer[N]" / "image[N]" turned into a JSON path. Its "File not
+// found : URI" names no index: the (text) document is searched for the buffer with that uri.
 InputError tinygltf_error(const std::string& path, const std::string& message) {
   std::string line = message.substr(0, message.find('\n'));
   if (line.empty()) line = "cannot parse glTF";
   std::smatch match;
   if (std::regex_search(line, match, std::regex(R"((buffer|image|bufferView|accessor)\[(\d+)\])")))
     return InputError(path, fmt::format("/{}s/{}", match[1].str(), match[2].str()), line);
+  const std::string not_found = "File not found : ";
+  if (line.rfind(not_found, 0) == 0) {
+    std::ifstream in(path, std::ios::binary);
+    const nlohmann::json document = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
+    const std::string uri = line.substr(not_found.size());
+    if (document.is_object() && document.contains("buffers") && document["buffers"].is_array())
+      for (std::size_t i = 0; i < document["buffers"].size(); ++i) {
+        const nlohmann::json& buffer = document["buffers"][i];
+        if (buffer.is_object() && buffer.contains("uri") && buffer["uri"].is_string() &&
+            percent_decode(buffer["uri"].get<std::string>()) == uri)
+          return InputError(path, child(child("/buffers", i), "uri"), fmt::format("buffer file '{}' not found", uri));
+      }
+  }
   return InputError(path, "", line);
 }
 
