@@ -33,8 +33,9 @@ constexpr std::size_t kMaxAccessorCount = std::size_t(1) << 28;
 // Image size used when a perspective camera gives an aspect ratio: height fixed, width follows.
 constexpr int kCameraImageHeight = 480;
 
-// Encoded bytes of images embedded as data: URIs or bufferViews, by image index. tinygltf hands
-// them to its image loader callback, which keeps them instead of decoding: OpenImageIO decodes.
+// Encoded bytes of images, by image index. tinygltf hands them (external files too) to its image
+// loader callback, which keeps them instead of decoding: OpenImageIO decodes. Only those embedded
+// as data: URIs or bufferViews are used; external files are read by path.
 using EmbeddedImages = std::map<int, std::shared_ptr<const std::string>>;
 
 bool keep_encoded_image(tinygltf::Image*, const int index, std::string*, std::string*, int, int,
@@ -361,11 +362,11 @@ Texture GltfReader::read_texture(const tinygltf::TextureInfo& info, const std::s
   }
   const tinygltf::Image& image = element(gltf_.images, texture.source, "image", child(texture_at, "source"));
   Texture result;
-  if (auto it = embedded_.find(texture.source); it != embedded_.end()) {
+  if (!image.uri.empty()) {  // tinygltf keeps the uri of external files only, not of data: URIs
+    result.path = (directory_ / percent_decode(image.uri)).string();
+  } else if (auto it = embedded_.find(texture.source); it != embedded_.end()) {
     result.encoded = it->second;
     result.path = fmt::format("{}#/images/{}", path_, texture.source);
-  } else if (!image.uri.empty()) {
-    result.path = (directory_ / percent_decode(image.uri)).string();
   } else {
     count("textures whose image could not be loaded not applied (base colour used)");
     return {};
