@@ -44,9 +44,25 @@ struct RenderArgs {
   int threads = 0;
   std::string stats_path;
   bool quiet = false;
+  GltfOptions gltf;
 };
 
-Scene load_scene_or_default(const std::string& path) { return path.empty() ? make_default_scene() : load_scene(path); }
+// --gltf-scene and --camera choose among what a glTF file holds; other formats have one of each.
+class UsageError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+Scene load_scene_or_default(const std::string& path, const GltfOptions& gltf) {
+  if ((gltf.scene || !gltf.camera.empty()) && !is_gltf_path(path))
+    throw UsageError(fmt::format("--gltf-scene and --camera apply to .gltf/.glb scenes only, not '{}'",
+                                 path.empty() ? "<built-in default>" : path));
+  return path.empty() ? make_default_scene() : load_scene(path, gltf);
+}
+
+void print_notices(const Scene& scene) {
+  for (const std::string& notice : scene.notices) fmt::print(stderr, "rt: notice: {}\n", notice);
+}
 
 // Output file when -o is absent: the scene's own "output", else "<scene stem>.png" in the working directory.
 std::string default_output(const Scene& scene, const std::string& scene_path) {
@@ -73,7 +89,8 @@ int run_render(const RenderArgs& args) {
   accel_options.embree_kernel = parse_embree_kernel(args.embree_kernel);
   const RayOffset ray_offset = parse_ray_offset(args.ray_offset);
 
-  Scene scene = load_scene_or_default(args.scene_path);
+  Scene scene = load_scene_or_default(args.scene_path, args.gltf);
+  if (!args.quiet) print_notices(scene);
   if (args.width) scene.settings.width = *args.width;
   if (args.height) scene.settings.height = *args.height;
   if (args.max_depth) scene.settings.max_depth = *args.max_depth;
@@ -144,8 +161,9 @@ int run_render(const RenderArgs& args) {
   return 0;
 }
 
-int run_info(const std::string& scene_path) {
-  const Scene scene = load_scene_or_default(scene_path);
+int run_info(const std::string& scene_path, const GltfOptions& gltf) {
+  const Scene scene = load_scene_or_default(scene_path, gltf);
+  print_notices(scene);
   const FlatScene flat = flatten_scene(scene);
   std::size_t models = 0;
   for (const Node& node : scene.nodes) models += node.models.size();
@@ -174,17 +192,21 @@ int run_info(const std::string& scene_path) {
     fmt::print("bounds      ({:.7g}, {:.7g}, {:.7g}) .. ({:.7g}, {:.7g}, {:.7g})\n", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
   fmt::print("materials   {}\n", scene.materials.size());
   for (const Material& m : scene.materials)
-    fmt::print("  {:<16} diffuse ({}, {}, {}), specular ({}, {}, {}), shininess {}\n", m.name, m.diffuse.r,
-               m.diffuse.g, m.diffuse.b, m.specular.r, m.specular.g, m.specular.b, m.shininess);
+    fmt::print("  {:<16} diffuse ({}, {}, {}), specular ({}, {}, {}), shininess {}{}\n", m.name, m.diffuse.r,
+               m.diffuse.g, m.diffuse.b, m.specular.r, m.specular.g, m.specular.b, m.shininess,
+               m.diffuse_texture.empty() ? "" : ", texture " + m.diffuse_texture.path);
   fmt::print("lights      {}\n", scene.lights.size());
   for (const Light& l : scene.lights) {
     if (l.is_directional())
       fmt::print("  directional towards ({}, {}, {}), colour ({}, {}, {})\n", l.position.x, l.position.y,
                  l.position.z, l.color.r, l.color.g, l.color.b);
     else
-      fmt::print("  point at ({}, {}, {}), colour ({}, {}, {}), attenuation ({}, {}, {})\n", l.position.x,
-                 l.position.y, l.position.z, l.color.r, l.color.g, l.color.b, l.attenuation.x, l.attenuation.y,
-                 l.attenuation.z);
+      fmt::print("  {} at ({}, {}, {}), colour ({}, {}, {}), attenuation ({}, {}, {}){}\n", l.is_spot() ? "spot" : "point",
+                 l.position.x, l.position.y, l.position.z, l.color.r, l.color.g, l.color.b, l.attenuation.x,
+                 l.attenuation.y, l.attenuation.z,
+                 l.is_spot() ? fmt::format(", towards ({}, {}, {}), cone cosines {} .. {}", l.spot_direction.x,
+                                           l.spot_direction.y, l.spot_direction.z, l.spot_cos_inner, l.spot_cos_outer)
+                             : "");
   }
   return 0;
 }
@@ -198,7 +220,15 @@ int run_cli(int argc, char** argv) {
 
   RenderArgs render_args;
   CLI::App* render = app.add_subcommand("render", "Render a scene (the built-in default scene when none is given)");
-  render->add_option("scene", render_args.scene_path, "Scene file (.json)");
+  render->add_option("scene", render_args.scene_path, "Scene file (.json, .test, .gltf, .glb)");
+  const auto add_gltf_options = [](CLI::App* command, GltfOptions& gltf) {
+    command->add_option("--gltf-scene", gltf.scene, "glTF only: index of the scene to show (default: the file's default)")
+        ->check(CLI::NonNegativeNumber);
+    command->add_option("--camera", gltf.camera,
+                        "glTF only: camera name, camera node name or index into the file's cameras "
+                        "(default: the first perspective camera in the scene)");
+  };
+  add_gltf_options(render, render_args.gltf);
   render->add_option("-o,--output", render_args.output,
                      "Output image; format by extension (png, jpg, exr, hdr, tif, ...). "
                      "Default: the scene's \"output\", else <scene name>.png");
@@ -242,8 +272,10 @@ int run_cli(int argc, char** argv) {
   render->add_flag("-q,--quiet", render_args.quiet, "No progress bar and no summary line");
 
   std::string info_path;
+  GltfOptions info_gltf;
   CLI::App* info = app.add_subcommand("info", "Print what a scene contains (the default scene when none is given)");
-  info->add_option("scene", info_path, "Scene file (.json)");
+  info->add_option("scene", info_path, "Scene file (.json, .test, .gltf, .glb)");
+  add_gltf_options(info, info_gltf);
 
   try {
     app.parse(argc, argv);
@@ -254,7 +286,10 @@ int run_cli(int argc, char** argv) {
 
   try {
     if (*render) return run_render(render_args);
-    if (*info) return run_info(info_path);
+    if (*info) return run_info(info_path, info_gltf);
+  } catch (const UsageError& error) {
+    fmt::print(stderr, "rt: usage error: {}\n", error.what());
+    return 2;
   } catch (const InputError& error) {
     fmt::print(stderr, "rt: error: {}\n", error.what());
   } catch (const std::bad_alloc&) {

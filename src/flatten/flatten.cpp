@@ -75,6 +75,10 @@ void append_model(const Scene& scene, std::uint32_t node_index, const Model& mod
     flat.positions.push_back(p);
     flat.normals.push_back(unit_n);
   }
+  if (!mesh->texcoords.empty()) {
+    flat.texcoords.resize(base, Vec2f(0.0f));
+    flat.texcoords.insert(flat.texcoords.end(), mesh->texcoords.begin(), mesh->texcoords.end());
+  }
   // A mirroring transform reverses the orientation of (p1 - p0) x (p2 - p0) but not of the
   // inverse-transposed normals; swapping two indices restores their agreement.
   const bool flip = det < 0.0;
@@ -149,6 +153,7 @@ FlatScene flatten_scene(const Scene& scene, const FlattenOptions& options) {
       stack.push_back({*child, entry.world_from_node * scene.nodes[*child].parent_from_node, entry.depth + 1});
     }
   }
+  if (!flat.texcoords.empty()) flat.texcoords.resize(flat.positions.size(), Vec2f(0.0f));
   if (flat.positions.size() >= 0xFFFFFFFFu)
     throw InputError(scene.source, "", "scene has more than 2^32 - 1 vertices");
   // Keep one spare slot so Embree's 16-byte load of the last vertex stays inside the allocation.

@@ -446,13 +446,28 @@ Scene parse_scene_json(const std::string& text, const std::string& path) {
   return scene;
 }
 
-Scene load_scene(const std::string& path) {
+namespace {
+
+std::string lower_extension(const std::string& path) {
   std::string ext = fs::path(path).extension().string();
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return ext;
+}
+
+}  // namespace
+
+bool is_gltf_path(const std::string& path) {
+  const std::string ext = lower_extension(path);
+  return ext == ".gltf" || ext == ".glb";
+}
+
+Scene load_scene(const std::string& path, const GltfOptions& gltf) {
+  const std::string ext = lower_extension(path);
   if (ext == ".json") return parse_scene_json(read_text_file(path), path);
   if (ext == ".test") return load_test_scene(path);  // CSE167x ray-tracer scenes, validated
+  if (is_gltf_path(path)) return load_gltf_scene(path, gltf);  // validated
   if (!fs::exists(path)) throw InputError(path, "", "no such file");
-  throw InputError(path, "", fmt::format("unsupported scene format '{}' (supported: .json, .test)", ext));
+  throw InputError(path, "", fmt::format("unsupported scene format '{}' (supported: .json, .test, .gltf, .glb)", ext));
 }
 
 }  // namespace rt

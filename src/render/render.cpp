@@ -41,7 +41,8 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
                           const RenderOptions& options) {
   const int width = scene.settings.width, height = scene.settings.height;
   const CameraFrame frame = make_camera_frame(scene.camera, width, height, scene.source);
-  const ShadingContext context{scene, flat, accel, options.ray_offset};
+  const TextureSampler textures(scene);
+  const ShadingContext context{scene, flat, accel, options.ray_offset, &textures};
   const int tile = std::max(1, options.tile_size);
   const int tiles_x = (width + tile - 1) / tile, tiles_y = (height + tile - 1) / tile;
   const int tile_count = tiles_x * tiles_y;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 namespace rt {
 
@@ -21,7 +22,8 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
   // surface up to rounding, whatever error t carries.
   const FlatScene& flat = context.flat;
   SurfacePoint surface;
-  Vec3d normal;  // shading normal, unit length
+  Vec3d normal;                    // shading normal, unit length
+  std::optional<Vec2f> texcoord;   // interpolated texture coordinates, when the scene has them
   if (flat.is_sphere(hit.primitive)) {
     surface = make_sphere_surface_point(flat.sphere_of(hit.primitive), Vec3d(ray.origin), Vec3d(ray.direction), hit.t);
     normal = surface.geometric_normal;
@@ -32,12 +34,22 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
     surface = make_surface_point(p0, p1, p2, b1, b2);
     normal = glm::normalize(b0 * Vec3d(flat.normals[tri.x]) + b1 * Vec3d(flat.normals[tri.y]) +
                             b2 * Vec3d(flat.normals[tri.z]));
+    if (!flat.texcoords.empty())
+      texcoord = float(b0) * flat.texcoords[tri.x] + float(b1) * flat.texcoords[tri.y] +
+                 float(b2) * flat.texcoords[tri.z];
   }
   const Vec3d& point = surface.point;
   const Vec3d direction = glm::normalize(Vec3d(ray.direction));
   const Vec3d to_eye = -direction;
-  const Material& material = context.scene.materials[flat.material_of(hit.primitive)];
-  const Vec3d ambient(material.ambient), diffuse(material.diffuse), specular(material.specular);
+  const std::uint32_t material_id = flat.material_of(hit.primitive);
+  const Material& material = context.scene.materials[material_id];
+  // Texture space, float: the diffuse texture's colour at the hit (white without one; spheres
+  // carry no texture coordinates).
+  const Vec3d texel = texcoord && context.textures && context.textures->has_diffuse(material_id)
+                          ? Vec3d(context.textures->diffuse(material_id, *texcoord))
+                          : Vec3d(1.0);
+  const Vec3d ambient = Vec3d(material.ambient) * texel, diffuse = Vec3d(material.diffuse) * texel;
+  const Vec3d specular(material.specular);
 
   Vec3d radiance(material.emission);
   for (const Light& light : context.scene.lights) {
@@ -51,6 +63,13 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
       if (!(d > 0.0)) continue;  // a light exactly at the point has no direction
       to_light = offset / d;
       intensity /= light.attenuation.x + light.attenuation.y * d + light.attenuation.z * d * d;
+      if (light.is_spot()) {
+        const double cone = std::clamp((glm::dot(light.spot_direction, -to_light) - light.spot_cos_outer) /
+                                           std::max(light.spot_cos_inner - light.spot_cos_outer, 1e-3),
+                                       0.0, 1.0);
+        if (cone == 0.0) continue;
+        intensity *= cone * cone;
+      }
     }
     Ray shadow_ray;
     shadow_ray.origin = offset_ray_origin(context.ray_offset, surface, to_light);
@@ -80,7 +99,8 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
     reflection_ray.origin = offset_ray_origin(context.ray_offset, surface, reflected);
     reflection_ray.direction = Vec3f(reflected);
     ++counts.reflection;
-    radiance += specular * Vec3d(find_color(context, reflection_ray, depth + 1, counts));
+    const Vec3d reflection = material.reflection ? Vec3d(*material.reflection) : specular;
+    radiance += reflection * Vec3d(find_color(context, reflection_ray, depth + 1, counts));
   }
   return Color(radiance);
 }

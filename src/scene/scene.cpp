@@ -57,6 +57,7 @@ void validate_scene(const Scene& scene) {
     check_color(scene, where, m.diffuse);
     check_color(scene, where, m.specular);
     check_color(scene, where, m.emission);
+    if (m.reflection) check_color(scene, where, *m.reflection);
     if (!std::isfinite(m.shininess) || m.shininess < 0.0f)
       throw InputError(scene.source, where, "shininess must be finite and >= 0");
   }
@@ -71,6 +72,8 @@ void validate_scene(const Scene& scene) {
     if (!finite(l.attenuation) || l.attenuation.x < 0 || l.attenuation.y < 0 || l.attenuation.z < 0 ||
         l.attenuation == Vec3d(0.0))
       throw InputError(scene.source, where, "attenuation must be finite, >= 0 and not all zero");
+    if (l.is_spot() && (!finite(l.spot_direction) || !(l.spot_cos_inner >= l.spot_cos_outer) || l.spot_cos_inner > 1.0))
+      throw InputError(scene.source, where, "spot light needs a finite direction and -1 < cos outer <= cos inner <= 1");
   }
   if (scene.nodes.empty()) throw InputError(scene.source, "", "scene has no root node");
   if (scene.root >= scene.nodes.size()) throw InputError(scene.source, "", "root node index out of range");
@@ -94,6 +97,8 @@ void validate_scene(const Scene& scene) {
       const TriangleMesh& mesh = *model.mesh;
       if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size())
         throw InputError(scene.source, where, "mesh has a different number of normals and positions");
+      if (!mesh.texcoords.empty() && mesh.texcoords.size() != mesh.positions.size())
+        throw InputError(scene.source, where, "mesh has a different number of texcoords and positions");
       for (const Vec3u& t : mesh.triangles)
         if (t.x >= mesh.positions.size() || t.y >= mesh.positions.size() || t.z >= mesh.positions.size())
           throw InputError(scene.source, where, "triangle index out of range");

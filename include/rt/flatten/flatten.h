@@ -32,6 +32,7 @@ void sphere_bounds(const FlatSphere& sphere, Vec3d& lower, Vec3d& upper);
 struct FlatScene {
   std::vector<Vec3f> positions;              // world space
   std::vector<Vec3f> normals;                // world space, unit length, one per position
+  std::vector<Vec2f> texcoords;              // empty, or one per position ((0, 0) where a mesh has none)
   std::vector<Vec3u> triangles;              // indices into positions, counter-clockwise
   std::vector<std::uint32_t> material_ids;   // one per triangle, index into Scene::materials
   std::vector<FlatSphere> spheres;

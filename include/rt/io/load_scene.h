@@ -3,13 +3,18 @@
 
 #include <string>
 
+#include "rt/io/load_gltf.h"
 #include "rt/scene/scene.h"
 
 namespace rt {
 
-// Loads a scene file, choosing the loader by extension (.json). The result is validated.
+// Loads a scene file, choosing the loader by extension (.json, .test, .gltf, .glb); `gltf` applies
+// to glTF files only. The result is validated.
 // Throws InputError naming the file, the line or JSON path, and the reason.
-Scene load_scene(const std::string& path);
+Scene load_scene(const std::string& path, const GltfOptions& gltf = {});
+
+// Whether load_scene reads `path` as glTF (by extension).
+bool is_gltf_path(const std::string& path);
 
 // Parses the native JSON scene format (see docs/scene-format.md) from `text`; `path` names the
 // source in messages and anchors relative mesh paths. Comments (// and /* */) are allowed.

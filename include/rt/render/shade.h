@@ -7,6 +7,7 @@
 #include "rt/accel/accel.h"
 #include "rt/flatten/flatten.h"
 #include "rt/render/ray_offset.h"
+#include "rt/render/texture.h"
 #include "rt/scene/scene.h"
 
 namespace rt {
@@ -28,13 +29,16 @@ struct ShadingContext {
   const FlatScene& flat;   // world-space geometry the accel was built on
   const Accel& accel;
   RayOffset ray_offset{};  // self-intersection policy of shadow and reflection rays
+  const TextureSampler* textures = nullptr;  // diffuse textures; nullptr: materials' textures are ignored
 };
 
 // The seed's FindColor for a ray whose origin and direction are world space:
 //   R = E + sum_j V_j L_j (C_ambient + C_diffuse max(n.l_j, 0) + C_specular max(n.h_j, 0)^sigma)
 //       + C_specular FindColor(reflected ray)
 // with Blinn-Phong half vectors h_j = normalize(l_j + v), V_j the 0/1 shadow-ray visibility and
-// L_j the light colour divided by the point-light attenuation. depth 0 is the primary hit; the
+// L_j the light colour divided by the point-light attenuation (and scaled by the spot falloff).
+// C_diffuse and C_ambient are multiplied by the material's diffuse texture at the hit; the
+// reflection is weighted by Material::reflection when set instead of C_specular. depth 0 is the primary hit; the
 // reflection recurses while depth < max_depth. A miss returns settings.background.
 // Computed in double, returned as float32 linear RGB.
 Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCounts& counts);

@@ -13,26 +13,51 @@
 
 namespace rt {
 
+// How texture coordinates outside [0, 1] map into the image (glTF sampler wrap modes).
+enum class TextureWrap { repeat, clamp_to_edge, mirrored_repeat };
+
+// An image looked up by a mesh's texcoords, (0, 0) at the top-left corner of the image (the glTF
+// convention). `path` names an image file; when `encoded` is set, the encoded file itself (PNG,
+// JPEG, ...) was embedded in the scene file and `path` only labels it in messages.
+// Texel values are sRGB-encoded colours, decoded to linear RGB when sampled.
+struct Texture {
+  std::string path;  // empty: no texture
+  std::shared_ptr<const std::string> encoded;
+  TextureWrap wrap_s = TextureWrap::repeat;  // along u (image columns)
+  TextureWrap wrap_t = TextureWrap::repeat;  // along v (image rows)
+
+  bool empty() const { return path.empty(); }
+};
+
 // Phong / Blinn-Phong material of the seed's FindColor. Colours are linear RGB in [0, inf).
 struct Material {
   std::string name;
   Color ambient{0.0f};
   Color diffuse{0.0f};
-  Color specular{0.0f};   // also weights the recursive mirror reflection
+  Color specular{0.0f};   // also weights the recursive mirror reflection, unless `reflection` is set
   Color emission{0.0f};
   float shininess = 1.0f;  // Blinn-Phong exponent sigma, >= 0
+  std::optional<Color> reflection;  // weight of the mirror reflection when it differs from `specular`
+  Texture diffuse_texture;          // multiplies `diffuse` and `ambient` at each hit
 };
 
 // A light in world space. position.w == 0: directional, (x, y, z) is the direction towards the
 // light (need not be unit length). position.w == 1: point light at (x, y, z).
 // Point lights are attenuated by 1 / (c0 + c1 d + c2 d^2), d the world-space distance in scene units;
-// directional lights never are.
+// directional lights never are. A point light with spot_cos_outer > -1 is a spot light: it is further
+// scaled by the square of clamp((cos a - spot_cos_outer) / max(spot_cos_inner - spot_cos_outer, 1e-3), 0, 1),
+// a the angle between spot_direction and the direction from the light to the lit point (the glTF
+// KHR_lights_punctual falloff).
 struct Light {
   Vec4d position{0.0, 0.0, 1.0, 0.0};
   Color color{1.0f};
   Vec3d attenuation{1.0, 0.0, 0.0};  // (constant, linear, quadratic)
+  Vec3d spot_direction{0.0, 0.0, -1.0};  // world space, unit: where the spot points
+  double spot_cos_inner = -1.0;          // cosines of the cone half-angles, inner >= outer
+  double spot_cos_outer = -1.0;
 
   bool is_directional() const { return position.w == 0.0; }
+  bool is_spot() const { return !is_directional() && spot_cos_outer > -1.0; }
 };
 
 // Pinhole camera in world space. fovy_degrees is the full vertical field of view, in (0, 180);
@@ -45,11 +70,13 @@ struct Camera {
 };
 
 // An indexed triangle mesh in object space (float32, what the renderer finally stores).
-// normals is empty or has one unit vector per position; triangles are counter-clockwise
+// normals is empty or has one unit vector per position; texcoords is empty or has one (u, v) per
+// position (texture space, see Texture); triangles are counter-clockwise
 // when seen from the side the geometric normal (p1 - p0) x (p2 - p0) points to.
 struct TriangleMesh {
   std::vector<Vec3f> positions;
   std::vector<Vec3f> normals;
+  std::vector<Vec2f> texcoords;
   std::vector<Vec3u> triangles;
 };
 
@@ -100,6 +127,7 @@ struct Scene {
   Camera camera;
   RenderSettings settings;
   std::string source;       // file the scene came from, for messages ("<built-in>" for the default)
+  std::vector<std::string> notices;  // what the loader skipped or substituted; loading went on
 };
 
 // Checks invariants that loaders and hand-built scenes must satisfy (indices in range, finite

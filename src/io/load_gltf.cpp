@@ -1,0 +1,751 @@
+#include "rt/io/load_gltf.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <numbers>
+#include <regex>
+
+#include <fmt/format.h>
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <glm/gtc/type_ptr.hpp>
+#include <nlohmann/json.hpp>
+#include <tiny_gltf.h>
+
+#include "rt/core/error.h"
+#include "rt/render/texture.h"
+
+namespace rt {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+// Roughness at and above which a surface gets no mirror reflection (see docs/scene-formats.md).
+constexpr double kMirrorRoughness = 0.3;
+// Largest accessor element count accepted (keeps a malformed count from exhausting memory).
+constexpr std::size_t kMaxAccessorCount = std::size_t(1) << 28;
+// Image size used when a perspective camera gives an aspect ratio: height fixed, width follows.
+constexpr int kCameraImageHeight = 480;
+
+// Encoded bytes of images, by image index. tinygltf hands them (external files too) to its image
+// loader callback, which keeps them instead of decoding: OpenImageIO decodes. Only those embedded
+// as data: URIs or bufferViews are used; external files are read by path.
+using EmbeddedImages = std::map<int, std::shared_ptr<const std::string>>;
+
+bool keep_encoded_image(tinygltf::Image*, const int index, std::string*, std::string*, int, int,
+                        const unsigned char* bytes, int size, void* user_data) {
+  auto& images = *static_cast<EmbeddedImages*>(user_data);
+  images[index] = std::make_shared<const std::string>(reinterpret_cast<const char*>(bytes), static_cast<std::size_t>(size));
+  return true;
+}
+
+std::string percent_decode(const std::string& uri) {
+  std::string out;
+  for (std::size_t i = 0; i < uri.size(); ++i) {
+    if (uri[i] == '%' && i + 2 < uri.size() && std::isxdigit(static_cast<unsigned char>(uri[i + 1])) &&
+        std::isxdigit(static_cast<unsigned char>(uri[i + 2]))) {
+      out += static_cast<char>(std::stoi(uri.substr(i + 1, 2), nullptr, 16));
+      i += 2;
+    } else {
+      out += uri[i];
+    }
+  }
+  return out;
+}
+
+std::string child(const std::string& where, const std::string& key) { return where + "/" + key; }
+std::string child(const std::string& where, std::size_t index) { return where + "/" + std::to_string(index); }
+
+// A node instance met while walking the selected scene: the glTF node and where it is.
+struct Placed {
+  int node;
+  Mat4d world_from_node;
+};
+
+// Turns a parsed tinygltf model into our scene, checking every index, count and byte range it
+// uses and naming the JSON path of each problem.
+class GltfReader {
+ public:
+  GltfReader(std::string path, const tinygltf::Model& model, const EmbeddedImages& embedded, const GltfOptions& options)
+      : path_(std::move(path)), directory_(fs::path(path_).parent_path()), gltf_(model), embedded_(embedded),
+        options_(options) {}
+
+  Scene read();
+
+ private:
+  [[noreturn]] void fail(const std::string& where, const std::string& reason) const {
+    throw InputError(path_, where, reason);
+  }
+  void count(const std::string& what) { ++skipped_[what]; }
+
+  template <class T>
+  const T& element(const std::vector<T>& array, int index, const std::string& array_name, const std::string& where) const {
+    if (index < 0 || static_cast<std::size_t>(index) >= array.size())
+      fail(where, fmt::format("{} index {} is out of range (the file has {} {})", array_name, index, array.size(),
+                              array_name == "mesh" ? "meshes" : array_name + "s"));
+    return array[static_cast<std::size_t>(index)];
+  }
+
+  std::vector<double> read_accessor(int index, const std::string& where, int components);
+  std::vector<std::uint32_t> read_indices(int index, const std::string& where, std::size_t vertex_count);
+  std::shared_ptr<const TriangleMesh> read_primitive(int mesh, int primitive, bool want_texcoords);
+  const std::vector<Model>& models_of_mesh(int mesh);
+  std::uint32_t material_index(int material);
+  Material read_material(int index);
+  Texture read_texture(const tinygltf::TextureInfo& info, const std::string& where);
+  Mat4d read_transform(const tinygltf::Node& node, const std::string& where) const;
+  std::vector<int> scene_roots();
+  void read_camera(const std::vector<Placed>& placed, Scene& scene);
+  void read_lights(const std::vector<Placed>& placed, Scene& scene);
+
+  std::string path_;
+  fs::path directory_;
+  const tinygltf::Model& gltf_;
+  const EmbeddedImages& embedded_;
+  const GltfOptions& options_;
+  std::map<int, std::vector<Model>> mesh_models_;
+  std::map<int, std::uint32_t> material_of_;   // glTF material (-1: default) -> Scene::materials index
+  std::vector<Material> materials_;
+  std::map<int, bool> image_readable_;
+  std::map<std::string, std::size_t> skipped_;  // notice text -> occurrences
+  std::vector<std::string> notices_;
+  Vec3d lo_{std::numeric_limits<double>::infinity()}, hi_{-std::numeric_limits<double>::infinity()};
+};
+
+int component_size(int type) {
+  switch (type) {
+    case TINYGLTF_COMPONENT_TYPE_BYTE:
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return 1;
+    case TINYGLTF_COMPONENT_TYPE_SHORT:
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: return 2;
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT:
+    case TINYGLTF_COMPONENT_TYPE_FLOAT: return 4;
+    default: return 0;
+  }
+}
+
+// One component at `p`, converted as glTF says: normalized integers map to [0, 1] or [-1, 1].
+double read_component(const unsigned char* p, int type, bool normalized) {
+  auto get = [p]<class T>(T) {
+    T value;
+    std::memcpy(&value, p, sizeof(T));
+    return value;
+  };
+  switch (type) {
+    case TINYGLTF_COMPONENT_TYPE_BYTE: return normalized ? std::max(get(std::int8_t()) / 127.0, -1.0) : get(std::int8_t());
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return normalized ? get(std::uint8_t()) / 255.0 : get(std::uint8_t());
+    case TINYGLTF_COMPONENT_TYPE_SHORT: return normalized ? std::max(get(std::int16_t()) / 32767.0, -1.0) : get(std::int16_t());
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: return normalized ? get(std::uint16_t()) / 65535.0 : get(std::uint16_t());
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: return normalized ? get(std::uint32_t()) / 4294967295.0 : get(std::uint32_t());
+    default: return get(float());
+  }
+}
+
+// Reads accessor `index` (referenced from `where`) as `components` doubles per element, sparse
+// substitutions applied. Every byte range is checked against its bufferView and buffer.
+std::vector<double> GltfReader::read_accessor(int index, const std::string& where, int components) {
+  const tinygltf::Accessor& accessor = element(gltf_.accessors, index, "accessor", where);
+  const std::string at = child("/accessors", static_cast<std::size_t>(index));
+  const int size = component_size(accessor.componentType);
+  if (size == 0) fail(child(at, "componentType"), fmt::format("invalid component type {}", accessor.componentType));
+  if (tinygltf::GetNumComponentsInType(static_cast<std::uint32_t>(accessor.type)) != components)
+    fail(child(at, "type"), fmt::format("expected {} components per element (used by {})", components, where));
+  if (accessor.count > kMaxAccessorCount) fail(child(at, "count"), fmt::format("count {} is too large", accessor.count));
+  const std::size_t count = accessor.count, element_size = static_cast<std::size_t>(size * components);
+
+  // Bytes [offset, offset + (n - 1) stride + element_size) of bufferView `view` must exist.
+  auto view_bytes = [&](int view_index, std::size_t offset, std::size_t n, std::size_t stride, std::size_t elem,
+                        const std::string& view_where) -> const unsigned char* {
+    const tinygltf::BufferView& view = element(gltf_.bufferViews, view_index, "bufferView", view_where);
+    const std::string view_at = child("/bufferViews", static_cast<std::size_t>(view_index));
+    const tinygltf::Buffer& buffer = element(gltf_.buffers, view.buffer, "buffer", child(view_at, "buffer"));
+    if (view.byteOffset > buffer.data.size() || view.byteLength > buffer.data.size() - view.byteOffset)
+      fail(view_at, fmt::format("bytes {}..{} lie outside buffer {} ({} bytes)", view.byteOffset,
+                                view.byteOffset + view.byteLength, view.buffer, buffer.data.size()));
+    const std::size_t needed = n == 0 ? 0 : offset + (n - 1) * stride + elem;
+    if (n > 0 && (offset > view.byteLength || needed > view.byteLength || (n - 1) * stride / stride != n - 1))
+      fail(view_where, fmt::format("{} elements of {} bytes (stride {}) from byte {} need {} bytes; bufferView {} has {}",
+                                   n, elem, stride, offset, needed, view_index, view.byteLength));
+    return buffer.data.data() + view.byteOffset + offset;
+  };
+
+  std::vector<double> values(count * components, 0.0);
+  if (accessor.bufferView >= 0) {
+    const tinygltf::BufferView& view = element(gltf_.bufferViews, accessor.bufferView, "bufferView", child(at, "bufferView"));
+    const std::size_t stride = view.byteStride == 0 ? element_size : view.byteStride;
+    if (stride < element_size)
+      fail(child(child("/bufferViews", static_cast<std::size_t>(accessor.bufferView)), "byteStride"),
+           fmt::format("stride {} is smaller than the {}-byte elements of accessor {}", stride, element_size, index));
+    const unsigned char* data = view_bytes(accessor.bufferView, accessor.byteOffset, count, stride, element_size, at);
+    for (std::size_t i = 0; i < count; ++i)
+      for (int c = 0; c < components; ++c)
+        values[i * components + c] = read_component(data + i * stride + c * size, accessor.componentType, accessor.normalized);
+  }
+  if (accessor.sparse.isSparse) {
+    const std::string sparse_at = child(at, "sparse");
+    const auto& sparse = accessor.sparse;
+    if (sparse.count < 0 || static_cast<std::size_t>(sparse.count) > count)
+      fail(child(sparse_at, "count"), fmt::format("sparse count {} exceeds the accessor's count {}", sparse.count, count));
+    const auto n = static_cast<std::size_t>(sparse.count);
+    const int index_size = component_size(sparse.indices.componentType);
+    if (index_size == 0 || sparse.indices.componentType == TINYGLTF_COMPONENT_TYPE_FLOAT ||
+        sparse.indices.componentType == TINYGLTF_COMPONENT_TYPE_BYTE ||
+        sparse.indices.componentType == TINYGLTF_COMPONENT_TYPE_SHORT)
+      fail(child(child(sparse_at, "indices"), "componentType"), "sparse indices must be unsigned integers");
+    const unsigned char* indices =
+        view_bytes(sparse.indices.bufferView, static_cast<std::size_t>(std::max(0, sparse.indices.byteOffset)), n,
+                   index_size, index_size, child(sparse_at, "indices"));
+    const unsigned char* substitutes =
+        view_bytes(sparse.values.bufferView, static_cast<std::size_t>(std::max(0, sparse.values.byteOffset)), n,
+                   element_size, element_size, child(sparse_at, "values"));
+    for (std::size_t k = 0; k < n; ++k) {
+      const double target = read_component(indices + k * index_size, sparse.indices.componentType, false);
+      if (target >= static_cast<double>(count))
+        fail(child(sparse_at, "indices"), fmt::format("sparse index {} is out of range (count {})", target, count));
+      const auto i = static_cast<std::size_t>(target);
+      for (int c = 0; c < components; ++c)
+        values[i * components + c] =
+            read_component(substitutes + k * element_size + c * size, accessor.componentType, accessor.normalized);
+    }
+  }
+  for (double v : values)
+    if (!std::isfinite(v)) fail(at, "a value is not finite");
+  return values;
+}
+
+std::vector<std::uint32_t> GltfReader::read_indices(int index, const std::string& where, std::size_t vertex_count) {
+  const tinygltf::Accessor& accessor = element(gltf_.accessors, index, "accessor", where);
+  if (accessor.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
+      accessor.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+      accessor.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT)
+    fail(where, fmt::format("accessor {} has component type {}; indices must be unsigned integers", index,
+                            accessor.componentType));
+  const std::vector<double> values = read_accessor(index, where, 1);
+  std::vector<std::uint32_t> indices(values.size());
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    if (values[i] >= static_cast<double>(vertex_count))
+      fail(where, fmt::format("index {} (element {} of accessor {}) is out of range: POSITION has {} vertices",
+                              values[i], i, index, vertex_count));
+    indices[i] = static_cast<std::uint32_t>(values[i]);
+  }
+  return indices;
+}
+
+std::shared_ptr<const TriangleMesh> GltfReader::read_primitive(int mesh_index, int primitive_index, bool want_texcoords) {
+  const tinygltf::Primitive& primitive =
+      gltf_.meshes[static_cast<std::size_t>(mesh_index)].primitives[static_cast<std::size_t>(primitive_index)];
+  const std::string where = child(child(child("/meshes", static_cast<std::size_t>(mesh_index)), "primitives"),
+                                  static_cast<std::size_t>(primitive_index));
+  const auto attribute = [&](const char* name) {
+    const auto it = primitive.attributes.find(name);
+    return it == primitive.attributes.end() ? -1 : it->second;
+  };
+  const int position_accessor = attribute("POSITION");
+  if (position_accessor < 0) fail(child(where, "attributes"), "primitive has no POSITION attribute");
+  const std::vector<double> positions = read_accessor(position_accessor, child(where, "attributes/POSITION"), 3);
+  const std::size_t vertex_count = positions.size() / 3;
+  std::vector<double> normals, texcoords;
+  if (attribute("NORMAL") >= 0) {
+    normals = read_accessor(attribute("NORMAL"), child(where, "attributes/NORMAL"), 3);
+    if (normals.size() != positions.size())
+      fail(child(where, "attributes/NORMAL"),
+           fmt::format("{} normals for {} positions", normals.size() / 3, vertex_count));
+  }
+  if (want_texcoords && attribute("TEXCOORD_0") >= 0) {
+    texcoords = read_accessor(attribute("TEXCOORD_0"), child(where, "attributes/TEXCOORD_0"), 2);
+    if (texcoords.size() / 2 != vertex_count)
+      fail(child(where, "attributes/TEXCOORD_0"),
+           fmt::format("{} texcoords for {} positions", texcoords.size() / 2, vertex_count));
+  }
+  if (attribute("COLOR_0") >= 0) count("COLOR_0 vertex colours are ignored");
+
+  std::vector<std::uint32_t> indices;
+  if (primitive.indices >= 0) {
+    indices = read_indices(primitive.indices, child(where, "indices"), vertex_count);
+  } else {
+    indices.resize(vertex_count);
+    for (std::size_t i = 0; i < vertex_count; ++i) indices[i] = static_cast<std::uint32_t>(i);
+  }
+
+  // Corner triples in the mode's order (glTF 2.0 section 3.7.2.1), counter-clockwise.
+  std::vector<Vec3u> corners;
+  const int mode = primitive.mode < 0 ? TINYGLTF_MODE_TRIANGLES : primitive.mode;
+  const std::size_t n = indices.size();
+  if (mode == TINYGLTF_MODE_TRIANGLES) {
+    for (std::size_t i = 0; i + 2 < n; i += 3) corners.push_back({indices[i], indices[i + 1], indices[i + 2]});
+  } else if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
+    for (std::size_t i = 0; i + 2 < n; ++i)
+      corners.push_back(i % 2 == 0 ? Vec3u(indices[i], indices[i + 1], indices[i + 2])
+                                   : Vec3u(indices[i + 1], indices[i], indices[i + 2]));
+  } else if (mode == TINYGLTF_MODE_TRIANGLE_FAN) {
+    for (std::size_t i = 1; i + 1 < n; ++i) corners.push_back({indices[i], indices[i + 1], indices[0]});
+  } else {
+    fail(child(where, "mode"), fmt::format("invalid primitive mode {}", mode));
+  }
+
+  auto mesh = std::make_shared<TriangleMesh>();
+  const auto position = [&](std::uint32_t i) { return Vec3f(Vec3d(positions[3 * i], positions[3 * i + 1], positions[3 * i + 2])); };
+  const auto texcoord = [&](std::uint32_t i) { return Vec2f(Vec2d(texcoords[2 * i], texcoords[2 * i + 1])); };
+  if (!normals.empty()) {
+    for (std::size_t i = 0; i < vertex_count; ++i) {
+      mesh->positions.push_back(position(static_cast<std::uint32_t>(i)));
+      const Vec3d normal(normals[3 * i], normals[3 * i + 1], normals[3 * i + 2]);
+      const double length = glm::length(normal);
+      mesh->normals.push_back(length > 0.0 ? Vec3f(normal / length) : Vec3f(0.0f, 0.0f, 1.0f));
+      if (!texcoords.empty()) mesh->texcoords.push_back(texcoord(static_cast<std::uint32_t>(i)));
+    }
+    mesh->triangles = std::move(corners);
+  } else {
+    // Without normals glTF asks for flat shading: each triangle gets its own corners and face normal.
+    for (const Vec3u& t : corners) {
+      const Vec3f p0 = position(t.x), p1 = position(t.y), p2 = position(t.z);
+      const Vec3d face = glm::cross(Vec3d(p1) - Vec3d(p0), Vec3d(p2) - Vec3d(p0));
+      const double length = glm::length(face);
+      const Vec3f normal = length > 0.0 ? Vec3f(face / length) : Vec3f(0.0f, 0.0f, 1.0f);
+      const auto base = static_cast<std::uint32_t>(mesh->positions.size());
+      for (std::uint32_t corner : {t.x, t.y, t.z}) {
+        mesh->positions.push_back(position(corner));
+        mesh->normals.push_back(normal);
+        if (!texcoords.empty()) mesh->texcoords.push_back(texcoord(corner));
+      }
+      mesh->triangles.push_back({base, base + 1, base + 2});
+    }
+  }
+  return mesh;
+}
+
+const std::vector<Model>& GltfReader::models_of_mesh(int mesh_index) {
+  if (auto it = mesh_models_.find(mesh_index); it != mesh_models_.end()) return it->second;
+  std::vector<Model> models;
+  const tinygltf::Mesh& mesh = gltf_.meshes[static_cast<std::size_t>(mesh_index)];
+  for (std::size_t p = 0; p < mesh.primitives.size(); ++p) {
+    const tinygltf::Primitive& primitive = mesh.primitives[p];
+    const int mode = primitive.mode < 0 ? TINYGLTF_MODE_TRIANGLES : primitive.mode;
+    if (mode == TINYGLTF_MODE_POINTS || mode == TINYGLTF_MODE_LINE || mode == TINYGLTF_MODE_LINE_LOOP ||
+        mode == TINYGLTF_MODE_LINE_STRIP) {
+      count("primitive(s) of points or lines skipped (not surfaces)");
+      continue;
+    }
+    if (primitive.material >= 0)
+      element(gltf_.materials, primitive.material, "material",
+              child(child(child(child("/meshes", static_cast<std::size_t>(mesh_index)), "primitives"), p), "material"));
+    const std::uint32_t material = material_index(primitive.material);
+    const bool textured = !materials_[material].diffuse_texture.empty();
+    models.push_back({read_primitive(mesh_index, static_cast<int>(p), textured), material});
+  }
+  return mesh_models_[mesh_index] = std::move(models);
+}
+
+std::uint32_t GltfReader::material_index(int material) {
+  if (auto it = material_of_.find(material); it != material_of_.end()) return it->second;
+  materials_.push_back(read_material(material));
+  return material_of_[material] = static_cast<std::uint32_t>(materials_.size() - 1);
+}
+
+Texture GltfReader::read_texture(const tinygltf::TextureInfo& info, const std::string& where) {
+  if (info.texCoord != 0) {
+    count("base-colour textures on TEXCOORD_1 or higher not applied (only TEXCOORD_0 is read)");
+    return {};
+  }
+  if (info.extensions.count("KHR_texture_transform")) count("KHR_texture_transform ignored (textures used untransformed)");
+  const tinygltf::Texture& texture = element(gltf_.textures, info.index, "texture", child(where, "index"));
+  const std::string texture_at = child("/textures", static_cast<std::size_t>(info.index));
+  if (texture.source < 0) {
+    count("textures without an image source not applied");
+    return {};
+  }
+  const tinygltf::Image& image = element(gltf_.images, texture.source, "image", child(texture_at, "source"));
+  Texture result;
+  if (!image.uri.empty()) {  // tinygltf keeps the uri of external files only, not of data: URIs
+    result.path = (directory_ / percent_decode(image.uri)).string();
+  } else if (auto it = embedded_.find(texture.source); it != embedded_.end()) {
+    result.encoded = it->second;
+    result.path = fmt::format("{}#/images/{}", path_, texture.source);
+  } else {
+    count("textures whose image could not be loaded not applied (base colour used)");
+    return {};
+  }
+  if (texture.sampler >= 0) {
+    const tinygltf::Sampler& sampler = element(gltf_.samplers, texture.sampler, "sampler", child(texture_at, "sampler"));
+    const auto wrap = [](int mode) {
+      if (mode == TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE) return TextureWrap::clamp_to_edge;
+      if (mode == TINYGLTF_TEXTURE_WRAP_MIRRORED_REPEAT) return TextureWrap::mirrored_repeat;
+      return TextureWrap::repeat;
+    };
+    result.wrap_s = wrap(sampler.wrapS);
+    result.wrap_t = wrap(sampler.wrapT);
+  }
+  auto [readable, inserted] = image_readable_.try_emplace(texture.source, true);
+  if (inserted) {
+    std::string reason;
+    readable->second = texture_is_readable(result, reason);
+    if (!readable->second)
+      notices_.push_back(fmt::format("{}: {}: texture image cannot be read ({}); using the base colour factor alone",
+                                     path_, child("/images", static_cast<std::size_t>(texture.source)),
+                                     image.uri.empty() ? reason : image.uri + ": " + reason));
+  }
+  return readable->second ? result : Texture{};
+}
+
+// pbrMetallicRoughness -> Blinn-Phong; the mapping and its reasons are in docs/scene-formats.md.
+Material GltfReader::read_material(int index) {
+  Material material;
+  if (index < 0) {
+    material.name = "<default>";
+    material.diffuse = Color(0.0f);  // the spec's default: white base colour, metallic 1, roughness 1
+    material.specular = Color(1.0f);
+    material.shininess = 1.0f;
+    material.reflection = Color(0.0f);
+    return material;
+  }
+  const tinygltf::Material& source = gltf_.materials[static_cast<std::size_t>(index)];
+  const std::string at = child("/materials", static_cast<std::size_t>(index));
+  const tinygltf::PbrMetallicRoughness& pbr = source.pbrMetallicRoughness;
+  material.name = source.name.empty() ? fmt::format("material {}", index) : source.name;
+  if (pbr.baseColorFactor.size() != 4) fail(child(at, "pbrMetallicRoughness/baseColorFactor"), "expected 4 numbers");
+  Vec3d base(pbr.baseColorFactor[0], pbr.baseColorFactor[1], pbr.baseColorFactor[2]);
+  double metallic = std::clamp(pbr.metallicFactor, 0.0, 1.0), roughness = std::clamp(pbr.roughnessFactor, 0.0, 1.0);
+  Vec3d specular_base = base;  // the base colour the (untextured) highlight uses
+  if (pbr.baseColorTexture.index >= 0) {
+    material.diffuse_texture = read_texture(pbr.baseColorTexture, child(at, "pbrMetallicRoughness/baseColorTexture"));
+    if (!material.diffuse_texture.empty())
+      if (const auto mean = texture_mean(material.diffuse_texture))
+        specular_base *= Vec3d(glm::pow(Vec3f(*mean), Vec3f(2.2f)));
+  }
+  if (pbr.metallicRoughnessTexture.index >= 0) {
+    // Not sampled per hit: its mean stands in (green = roughness, blue = metallic).
+    Texture texture = read_texture(pbr.metallicRoughnessTexture, child(at, "pbrMetallicRoughness/metallicRoughnessTexture"));
+    if (const auto mean = texture.empty() ? std::nullopt : texture_mean(texture)) {
+      roughness *= mean->g;
+      metallic *= mean->b;
+    }
+    count("metallic-roughness textures replaced by their mean value");
+  }
+  if (source.normalTexture.index >= 0) count("normal maps ignored");
+  if (source.occlusionTexture.index >= 0) count("occlusion maps ignored");
+  if (source.alphaMode == "BLEND" || source.alphaMode == "MASK") count("alpha modes BLEND and MASK rendered opaque");
+
+  const Vec3d f0 = glm::mix(Vec3d(0.04), specular_base, metallic);
+  const double alpha = roughness * roughness;
+  material.diffuse = Color(base * (1.0 - metallic + metallic * roughness));
+  material.specular = Color(f0 * (1.0 - metallic * roughness));
+  material.shininess = static_cast<float>(std::clamp(2.0 / std::max(alpha * alpha, 1e-8) - 2.0, 1.0, 1e4));
+  material.reflection = Color(f0 * std::max(0.0, 1.0 - roughness / kMirrorRoughness));
+
+  if (source.emissiveFactor.size() != 3) fail(child(at, "emissiveFactor"), "expected 3 numbers");
+  Vec3d emission(source.emissiveFactor[0], source.emissiveFactor[1], source.emissiveFactor[2]);
+  if (auto it = source.extensions.find("KHR_materials_emissive_strength"); it != source.extensions.end()) {
+    const tinygltf::Value& strength = it->second.Get("emissiveStrength");
+    if (strength.IsNumber()) emission *= strength.GetNumberAsDouble();
+  }
+  if (source.emissiveTexture.index >= 0) {
+    // Not sampled: its mean (sRGB-decoded) modulates the factor.
+    const Texture texture = read_texture(source.emissiveTexture, child(at, "emissiveTexture"));
+    const auto mean = texture.empty() ? std::nullopt : texture_mean(texture);
+    emission *= mean ? Vec3d(glm::pow(Vec3f(*mean), Vec3f(2.2f))) : Vec3d(0.0);
+    count("emissive textures replaced by their mean colour");
+  }
+  if (glm::any(glm::lessThan(emission, Vec3d(0.0))) || glm::any(glm::lessThan(base, Vec3d(0.0))))
+    fail(at, "colour factors must be >= 0");
+  material.emission = Color(emission);
+  return material;
+}
+
+Mat4d GltfReader::read_transform(const tinygltf::Node& node, const std::string& where) const {
+  if (!node.matrix.empty()) {
+    if (node.matrix.size() != 16) fail(child(where, "matrix"), "expected 16 numbers");
+    return glm::make_mat4(node.matrix.data());  // column-major, as glm stores it
+  }
+  Mat4d transform(1.0);
+  if (!node.translation.empty()) {
+    if (node.translation.size() != 3) fail(child(where, "translation"), "expected 3 numbers");
+    transform = glm::translate(transform, Vec3d(node.translation[0], node.translation[1], node.translation[2]));
+  }
+  if (!node.rotation.empty()) {
+    if (node.rotation.size() != 4) fail(child(where, "rotation"), "expected 4 numbers (x, y, z, w)");
+    const glm::dquat q(node.rotation[3], node.rotation[0], node.rotation[1], node.rotation[2]);
+    const double length = glm::length(q);
+    if (!(length > 0.0) || !std::isfinite(length)) fail(child(where, "rotation"), "quaternion is zero or not finite");
+    transform *= glm::mat4_cast(q / length);
+  }
+  if (!node.scale.empty()) {
+    if (node.scale.size() != 3) fail(child(where, "scale"), "expected 3 numbers");
+    transform = glm::scale(transform, Vec3d(node.scale[0], node.scale[1], node.scale[2]));
+  }
+  return transform;
+}
+
+std::vector<int> GltfReader::scene_roots() {
+  const std::size_t scene_count = gltf_.scenes.size();
+  int chosen = -1;
+  if (options_.scene) {
+    if (*options_.scene < 0 || static_cast<std::size_t>(*options_.scene) >= scene_count)
+      fail("/scenes", fmt::format("--gltf-scene {} is out of range (the file has {} scene(s))", *options_.scene, scene_count));
+    chosen = *options_.scene;
+  } else if (gltf_.defaultScene >= 0) {
+    element(gltf_.scenes, gltf_.defaultScene, "scene", "/scene");
+    chosen = gltf_.defaultScene;
+  } else if (scene_count > 0) {
+    chosen = 0;
+  }
+  std::vector<int> roots;
+  if (chosen >= 0) {
+    const std::string at = child("/scenes", static_cast<std::size_t>(chosen));
+    const std::vector<int>& nodes = gltf_.scenes[static_cast<std::size_t>(chosen)].nodes;
+    for (std::size_t i = 0; i < nodes.size(); ++i) element(gltf_.nodes, nodes[i], "node", child(child(at, "nodes"), i));
+    return nodes;
+  }
+  // No scenes at all: every node that is nobody's child is a root.
+  std::vector<bool> is_child(gltf_.nodes.size(), false);
+  for (const tinygltf::Node& node : gltf_.nodes)
+    for (int c : node.children)
+      if (c >= 0 && static_cast<std::size_t>(c) < is_child.size()) is_child[static_cast<std::size_t>(c)] = true;
+  for (std::size_t i = 0; i < is_child.size(); ++i)
+    if (!is_child[i]) roots.push_back(static_cast<int>(i));
+  if (!gltf_.nodes.empty()) notices_.push_back(fmt::format("{}: the file has no scenes: showing every root node", path_));
+  return roots;
+}
+
+void GltfReader::read_camera(const std::vector<Placed>& placed, Scene& scene) {
+  const auto is_placed = [&](int camera) {
+    for (const Placed& p : placed)
+      if (gltf_.nodes[static_cast<std::size_t>(p.node)].camera == camera) return &p;
+    return static_cast<const Placed*>(nullptr);
+  };
+  const Placed* chosen = nullptr;
+  int camera = -1;
+  if (!options_.camera.empty()) {
+    const std::string& wanted = options_.camera;
+    if (std::all_of(wanted.begin(), wanted.end(), [](char c) { return std::isdigit(static_cast<unsigned char>(c)); })) {
+      camera = wanted.size() < 9 ? std::stoi(wanted) : -1;
+      if (camera < 0 || static_cast<std::size_t>(camera) >= gltf_.cameras.size())
+        fail("/cameras", fmt::format("--camera {} is out of range (the file has {} camera(s))", wanted, gltf_.cameras.size()));
+    } else {
+      for (std::size_t i = 0; i < gltf_.cameras.size() && camera < 0; ++i)
+        if (gltf_.cameras[i].name == wanted) camera = static_cast<int>(i);
+      for (const Placed& p : placed)
+        if (camera < 0 && gltf_.nodes[static_cast<std::size_t>(p.node)].name == wanted)
+          camera = gltf_.nodes[static_cast<std::size_t>(p.node)].camera;
+      if (camera < 0) fail("/cameras", fmt::format("no camera or camera node is named '{}'", wanted));
+    }
+    chosen = is_placed(camera);
+    if (!chosen) fail(child("/cameras", static_cast<std::size_t>(camera)), "no node of the selected scene uses this camera");
+    if (gltf_.cameras[static_cast<std::size_t>(camera)].type != "perspective")
+      fail(child(child("/cameras", static_cast<std::size_t>(camera)), "type"),
+           fmt::format("'{}' cameras are not supported (only perspective)", gltf_.cameras[static_cast<std::size_t>(camera)].type));
+  } else {
+    bool skipped = false;
+    for (const Placed& p : placed) {
+      const int c = gltf_.nodes[static_cast<std::size_t>(p.node)].camera;
+      if (c < 0) continue;
+      element(gltf_.cameras, c, "camera", child(child("/nodes", static_cast<std::size_t>(p.node)), "camera"));
+      if (gltf_.cameras[static_cast<std::size_t>(c)].type == "perspective") {
+        chosen = &p;
+        camera = c;
+        break;
+      }
+      skipped = true;
+    }
+    if (skipped) notices_.push_back(fmt::format("{}: orthographic camera(s) skipped (not supported)", path_));
+  }
+
+  if (!chosen) {
+    // Frame the bounding sphere of the geometry from the front (+z in glTF), a little from the
+    // right and above, as glTF sample screenshots do; fovy 45 degrees.
+    const bool empty = !(lo_.x <= hi_.x);
+    const Vec3d center = empty ? Vec3d(0.0) : 0.5 * (lo_ + hi_);
+    double radius = empty ? 1.0 : 0.5 * glm::length(hi_ - lo_);
+    if (!(radius > 0.0)) radius = 1.0;
+    scene.camera.fovy_degrees = 45.0;
+    scene.camera.target = center;
+    scene.camera.eye = center + glm::normalize(Vec3d(0.5, 0.4, 1.0)) * (1.1 * radius / std::sin(22.5 * kPi / 180.0));
+    scene.camera.up = Vec3d(0.0, 1.0, 0.0);
+    notices_.push_back(fmt::format("{}: no camera: framing the scene's bounding box from the front (+z), right and above", path_));
+    return;
+  }
+  const tinygltf::Camera& source = gltf_.cameras[static_cast<std::size_t>(camera)];
+  const std::string at = child(child("/cameras", static_cast<std::size_t>(camera)), "perspective");
+  const double fovy = source.perspective.yfov * 180.0 / kPi;
+  if (!(fovy > 0.0 && fovy < 180.0)) fail(child(at, "yfov"), fmt::format("yfov {} is outside (0, pi) radians", source.perspective.yfov));
+  const Mat4d& m = chosen->world_from_node;
+  scene.camera.eye = Vec3d(m * Vec4d(0.0, 0.0, 0.0, 1.0));
+  scene.camera.target = scene.camera.eye + glm::normalize(Vec3d(m * Vec4d(0.0, 0.0, -1.0, 0.0)));
+  scene.camera.up = Vec3d(m * Vec4d(0.0, 1.0, 0.0, 0.0));
+  scene.camera.fovy_degrees = fovy;
+  if (source.perspective.aspectRatio > 0.0) {
+    scene.settings.height = kCameraImageHeight;
+    scene.settings.width = static_cast<int>(std::clamp(std::round(kCameraImageHeight * source.perspective.aspectRatio),
+                                                       1.0, double(kMaxImageSide)));
+  }
+}
+
+void GltfReader::read_lights(const std::vector<Placed>& placed, Scene& scene) {
+  for (const Placed& p : placed) {
+    const tinygltf::Node& node = gltf_.nodes[static_cast<std::size_t>(p.node)];
+    const auto it = node.extensions.find("KHR_lights_punctual");
+    if (it == node.extensions.end()) continue;
+    const std::string at = child(child(child("/nodes", static_cast<std::size_t>(p.node)), "extensions"), "KHR_lights_punctual");
+    const tinygltf::Value& index = it->second.Get("light");
+    if (!index.IsNumber()) fail(child(at, "light"), "expected a light index");
+    const tinygltf::Light& source = element(gltf_.lights, index.GetNumberAsInt(), "light", child(at, "light"));
+    const std::string light_at = fmt::format("/extensions/KHR_lights_punctual/lights/{}", index.GetNumberAsInt());
+    Vec3d color(1.0);
+    if (!source.color.empty()) {
+      if (source.color.size() != 3) fail(child(light_at, "color"), "expected 3 numbers");
+      color = Vec3d(source.color[0], source.color[1], source.color[2]);
+    }
+    if (!(source.intensity >= 0.0) || glm::any(glm::lessThan(color, Vec3d(0.0))))
+      fail(light_at, "colour and intensity must be >= 0");
+    if (source.range > 0.0) count("light ranges ignored (lights reach everywhere)");
+    Light light;
+    // candela (point, spot) or lux (directional) -> our radiometric colour: / pi, see docs/scene-formats.md.
+    light.color = Color(color * source.intensity / kPi);
+    const Vec3d origin(p.world_from_node * Vec4d(0.0, 0.0, 0.0, 1.0));
+    const Vec3d forward(p.world_from_node * Vec4d(0.0, 0.0, -1.0, 0.0));
+    if (source.type == "directional") {
+      if (!(glm::length(forward) > 0.0)) fail(light_at, "the light's node transform has no -z direction");
+      light.position = Vec4d(-glm::normalize(forward), 0.0);
+    } else if (source.type == "point" || source.type == "spot") {
+      light.position = Vec4d(origin, 1.0);
+      light.attenuation = Vec3d(0.0, 0.0, 1.0);
+      if (source.type == "spot") {
+        const double outer = std::clamp(source.spot.outerConeAngle, 1e-6, kPi / 2);
+        const double inner = std::clamp(source.spot.innerConeAngle, 0.0, outer);
+        if (!(glm::length(forward) > 0.0)) fail(light_at, "the light's node transform has no -z direction");
+        light.spot_direction = glm::normalize(forward);
+        light.spot_cos_inner = std::cos(inner);
+        light.spot_cos_outer = std::cos(outer);
+      }
+    } else {
+      fail(child(light_at, "type"), fmt::format("unknown light type '{}'", source.type));
+    }
+    scene.lights.push_back(light);
+  }
+  if (scene.lights.empty()) {
+    Light headlight;
+    headlight.position = Vec4d(scene.camera.eye, 1.0);
+    scene.lights.push_back(headlight);
+    notices_.push_back(fmt::format("{}: no lights: using a white headlight at the camera", path_));
+  }
+}
+
+Scene GltfReader::read() {
+  Scene scene;
+  scene.source = path_;
+  for (std::size_t i = 0; i < gltf_.extensionsRequired.size(); ++i) {
+    const std::string& name = gltf_.extensionsRequired[i];
+    if (name != "KHR_lights_punctual" && name != "KHR_materials_emissive_strength" && name != "KHR_texture_transform" &&
+        name != "KHR_mesh_quantization")
+      fail(child("/extensionsRequired", i), fmt::format("required extension {} is not supported", name));
+  }
+
+  // Our node i + 1 is glTF node i; node 0 is the identity root holding the scene's root nodes.
+  scene.nodes.push_back(Node{"<root>", Mat4d(1.0), {}, {}});
+  for (std::size_t i = 0; i < gltf_.nodes.size(); ++i) {
+    const tinygltf::Node& source = gltf_.nodes[i];
+    const std::string at = child("/nodes", i);
+    Node node;
+    node.name = source.name.empty() ? fmt::format("/nodes/{}", i) : source.name;
+    node.parent_from_node = read_transform(source, at);
+    for (std::size_t c = 0; c < source.children.size(); ++c) {
+      element(gltf_.nodes, source.children[c], "node", child(child(at, "children"), c));
+      node.children.push_back(static_cast<std::uint32_t>(source.children[c]) + 1);
+    }
+    scene.nodes.push_back(std::move(node));
+  }
+  const std::vector<int> roots = scene_roots();
+  for (int root : roots) scene.nodes[0].children.push_back(static_cast<std::uint32_t>(root) + 1);
+
+  // Walk the selected scene depth-first (explicit stack; a path longer than the node count is a
+  // cycle), attaching meshes and collecting camera and light placements and world bounds.
+  std::vector<Placed> placed;
+  std::vector<std::pair<Placed, std::size_t>> stack;
+  for (auto it = roots.rbegin(); it != roots.rend(); ++it)
+    stack.push_back({{*it, scene.nodes[static_cast<std::size_t>(*it) + 1].parent_from_node}, 0});
+  while (!stack.empty()) {
+    const auto [entry, depth] = stack.back();
+    stack.pop_back();
+    placed.push_back(entry);
+    const tinygltf::Node& source = gltf_.nodes[static_cast<std::size_t>(entry.node)];
+    Node& node = scene.nodes[static_cast<std::size_t>(entry.node) + 1];
+    if (source.mesh >= 0) {
+      element(gltf_.meshes, source.mesh, "mesh", child(child("/nodes", static_cast<std::size_t>(entry.node)), "mesh"));
+      if (node.models.empty()) node.models = models_of_mesh(source.mesh);
+      for (const Model& model : node.models)
+        for (const Vec3f& p : model.mesh->positions) {
+          const Vec3d world(entry.world_from_node * Vec4d(Vec3d(p), 1.0));
+          lo_ = glm::min(lo_, world);
+          hi_ = glm::max(hi_, world);
+        }
+    }
+    if (source.skin >= 0 || !source.weights.empty()) count("skins and morph targets ignored (bind pose shown)");
+    for (auto c = source.children.rbegin(); c != source.children.rend(); ++c) {
+      if (depth + 1 >= gltf_.nodes.size())
+        fail(child(child("/nodes", static_cast<std::size_t>(entry.node)), "children"), "node hierarchy contains a cycle");
+      stack.push_back({{*c, entry.world_from_node * scene.nodes[static_cast<std::size_t>(*c) + 1].parent_from_node}, depth + 1});
+    }
+  }
+
+  read_camera(placed, scene);
+  read_lights(placed, scene);
+  scene.materials = std::move(materials_);
+  if (scene.materials.empty()) scene.materials.push_back(read_material(-1));
+  for (const auto& [what, n] : skipped_) notices_.push_back(fmt::format("{}: {} ({}x)", path_, what, n));
+  scene.notices = std::move(notices_);
+  return scene;
+}
+
+// tinygltf's first error line, with "buffer[N]" / "image[N]" turned into a JSON path. Its "File not
+// found : URI" names no index: the (text) document is searched for the buffer with that uri.
+InputError tinygltf_error(const std::string& path, const std::string& message) {
+  std::string line = message.substr(0, message.find('\n'));
+  if (line.empty()) line = "cannot parse glTF";
+  std::smatch match;
+  if (std::regex_search(line, match, std::regex(R"((buffer|image|bufferView|accessor)\[(\d+)\])")))
+    return InputError(path, fmt::format("/{}s/{}", match[1].str(), match[2].str()), line);
+  const std::string not_found = "File not found : ";
+  if (line.rfind(not_found, 0) == 0) {
+    std::ifstream in(path, std::ios::binary);
+    const nlohmann::json document = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
+    const std::string uri = line.substr(not_found.size());
+    if (document.is_object() && document.contains("buffers") && document["buffers"].is_array())
+      for (std::size_t i = 0; i < document["buffers"].size(); ++i) {
+        const nlohmann::json& buffer = document["buffers"][i];
+        if (buffer.is_object() && buffer.contains("uri") && buffer["uri"].is_string() &&
+            percent_decode(buffer["uri"].get<std::string>()) == uri)
+          return InputError(path, child(child("/buffers", i), "uri"), fmt::format("buffer file '{}' not found", uri));
+      }
+  }
+  return InputError(path, "", line);
+}
+
+}  // namespace
+
+Scene load_gltf_scene(const std::string& path, const GltfOptions& options) {
+  std::error_code error;
+  if (!fs::is_regular_file(path, error)) throw InputError(path, "", fs::exists(path, error) ? "not a regular file" : "no such file");
+  char magic[4] = {};
+  std::ifstream(path, std::ios::binary).read(magic, 4);
+  const bool binary = std::memcmp(magic, "glTF", 4) == 0;
+
+  tinygltf::TinyGLTF loader;
+  EmbeddedImages embedded;
+  loader.SetImageLoader(keep_encoded_image, &embedded);
+  tinygltf::Model model;
+  std::string errors, warnings;
+  const bool ok = binary ? loader.LoadBinaryFromFile(&model, &errors, &warnings, path)
+                         : loader.LoadASCIIFromFile(&model, &errors, &warnings, path);
+  if (!ok || !errors.empty()) throw tinygltf_error(path, errors);
+
+  Scene scene = GltfReader(path, model, embedded, options).read();
+  validate_scene(scene);
+  return scene;
+}
+
+}  // namespace rt
