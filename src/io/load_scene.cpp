@@ -443,13 +443,14 @@ Scene parse_scene_json(const std::string& text, const std::string& path) {
   return scene;
 }
 
-Scene load_scene(const std::string& path) {
+Scene load_scene(const std::string& path, LoadReport* report) {
   std::string ext = fs::path(path).extension().string();
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   if (ext == ".json") return parse_scene_json(read_text_file(path), path);
   if (ext == ".test") return load_test_scene(path);  // CSE167x ray-tracer scenes, validated
+  if (ext == ".obj") return load_obj_scene(path, report);  // Wavefront OBJ + MTL, validated
   if (!fs::exists(path)) throw InputError(path, "", "no such file");
-  throw InputError(path, "", fmt::format("unsupported scene format '{}' (supported: .json, .test)", ext));
+  throw InputError(path, "", fmt::format("unsupported scene format '{}' (supported: .json, .test, .obj)", ext));
 }
 
 }  // namespace rt

@@ -31,6 +31,7 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
   const Vec3d to_eye = -direction;
   const Material& material = context.scene.materials[flat.material_ids[hit.triangle]];
   const Vec3d ambient(material.ambient), diffuse(material.diffuse), specular(material.specular);
+  const Vec3d reflective(material.reflective.value_or(material.specular));
 
   Vec3d radiance(material.emission);
   for (const Light& light : context.scene.lights) {
@@ -67,13 +68,13 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
     radiance += intensity * (ambient + diffuse * n_dot_l + specular * std::pow(n_dot_h, double(material.shininess)));
   }
 
-  if (depth < context.scene.settings.max_depth) {
+  if (depth < context.scene.settings.max_depth && (!material.reflective || reflective != Vec3d(0.0))) {
     const Vec3d reflected = direction - 2.0 * glm::dot(direction, normal) * normal;
     Ray reflection_ray;
     reflection_ray.origin = offset_ray_origin(context.ray_offset, surface, reflected);
     reflection_ray.direction = Vec3f(reflected);
     ++counts.reflection;
-    radiance += specular * Vec3d(find_color(context, reflection_ray, depth + 1, counts));
+    radiance += reflective * Vec3d(find_color(context, reflection_ray, depth + 1, counts));
   }
   return Color(radiance);
 }

@@ -32,7 +32,9 @@ struct ShadingContext {
 
 // The seed's FindColor for a ray whose origin and direction are world space:
 //   R = E + sum_j V_j L_j (C_ambient + C_diffuse max(n.l_j, 0) + C_specular max(n.h_j, 0)^sigma)
-//       + C_specular FindColor(reflected ray)
+//       + C_reflective FindColor(reflected ray)
+// where C_reflective is Material::reflective when set, else C_specular (the seed's formula); an
+// explicitly zero C_reflective traces no reflection ray.
 // with Blinn-Phong half vectors h_j = normalize(l_j + v), V_j the 0/1 shadow-ray visibility and
 // L_j the light colour divided by the point-light attenuation. depth 0 is the primary hit; the
 // reflection recurses while depth < max_depth. A miss returns settings.background.
