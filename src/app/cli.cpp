@@ -14,6 +14,7 @@
 
 #include "rt/accel/accel.h"
 #include "rt/app/progress.h"
+#include "rt/app/scene_options.h"
 #include "rt/core/error.h"
 #include "rt/flatten/flatten.h"
 #include "rt/io/atomic_file.h"
@@ -42,9 +43,16 @@ struct RenderArgs {
   int threads = 0;
   std::string stats_path;
   bool quiet = false;
+  SceneOptions scene;
 };
 
-Scene load_scene_or_default(const std::string& path) { return path.empty() ? make_default_scene() : load_scene(path); }
+Scene load_scene_or_default(const std::string& path, LoadReport* report = nullptr) {
+  return path.empty() ? make_default_scene() : load_scene(path, report);
+}
+
+void print_notices(const SceneOptions& options, const LoadReport& report, const Scene& scene) {
+  for (const std::string& notice : scene_notices(options, report, scene)) fmt::print(stderr, "rt: {}\n", notice);
+}
 
 // Output file when -o is absent: the scene's own "output", else "<scene stem>.png" in the working directory.
 std::string default_output(const Scene& scene, const std::string& scene_path) {
@@ -70,10 +78,13 @@ int run_render(const RenderArgs& args) {
   accel_options.embree_quality = parse_embree_quality(args.embree_quality);
   const RayOffset ray_offset = parse_ray_offset(args.ray_offset);
 
-  Scene scene = load_scene_or_default(args.scene_path);
+  LoadReport report;
+  Scene scene = load_scene_or_default(args.scene_path, &report);
   if (args.width) scene.settings.width = *args.width;
   if (args.height) scene.settings.height = *args.height;
   if (args.max_depth) scene.settings.max_depth = *args.max_depth;
+  apply_scene_options(args.scene, report, scene);
+  if (!args.quiet) print_notices(args.scene, report, scene);
   validate_scene(scene);
   const std::string output = args.output.empty() ? default_output(scene, args.scene_path) : args.output;
   check_output_path(output);  // fail before rendering, not after
@@ -133,8 +144,12 @@ int run_render(const RenderArgs& args) {
   return 0;
 }
 
-int run_info(const std::string& scene_path) {
-  const Scene scene = load_scene_or_default(scene_path);
+int run_info(const std::string& scene_path, const SceneOptions& scene_options) {
+  LoadReport report;
+  Scene scene = load_scene_or_default(scene_path, &report);
+  apply_scene_options(scene_options, report, scene);
+  print_notices(scene_options, report, scene);
+  validate_scene(scene);
   const FlatScene flat = flatten_scene(scene);
   std::size_t models = 0;
   for (const Node& node : scene.nodes) models += node.models.size();
@@ -181,7 +196,7 @@ int run_cli(int argc, char** argv) {
 
   RenderArgs render_args;
   CLI::App* render = app.add_subcommand("render", "Render a scene (the built-in default scene when none is given)");
-  render->add_option("scene", render_args.scene_path, "Scene file (.json)");
+  render->add_option("scene", render_args.scene_path, "Scene file (.json, .test, .obj)");
   render->add_option("-o,--output", render_args.output,
                      "Output image; format by extension (png, jpg, exr, hdr, tif, ...). "
                      "Default: the scene's \"output\", else <scene name>.png");
@@ -208,11 +223,14 @@ int run_cli(int argc, char** argv) {
       ->check(CLI::Range(0, 1024))
       ->capture_default_str();
   render->add_option("--stats", render_args.stats_path, "Write ray counts and phase timings as JSON to this file");
-  render->add_flag("-q,--quiet", render_args.quiet, "No progress bar and no summary line");
+  render->add_flag("-q,--quiet", render_args.quiet, "No progress bar, summary line, warnings or notes");
+  add_scene_options(*render, render_args.scene);
 
   std::string info_path;
   CLI::App* info = app.add_subcommand("info", "Print what a scene contains (the default scene when none is given)");
-  info->add_option("scene", info_path, "Scene file (.json)");
+  info->add_option("scene", info_path, "Scene file (.json, .test, .obj)");
+  SceneOptions info_scene;
+  add_scene_options(*info, info_scene);
 
   try {
     app.parse(argc, argv);
@@ -223,7 +241,10 @@ int run_cli(int argc, char** argv) {
 
   try {
     if (*render) return run_render(render_args);
-    if (*info) return run_info(info_path);
+    if (*info) return run_info(info_path, info_scene);
+  } catch (const UsageError& error) {
+    fmt::print(stderr, "rt: error: {}\n", error.what());
+    return 2;
   } catch (const InputError& error) {
     fmt::print(stderr, "rt: error: {}\n", error.what());
   } catch (const std::bad_alloc&) {
