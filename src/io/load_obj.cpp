@@ -223,7 +223,9 @@ Material to_material(const tinyobj::material_t& m) {
   material.specular = color_of(m.specular);
   material.emission = color_of(m.emission);
   material.shininess = static_cast<float>(m.shininess);
-  material.reflective = (m.illum == 3 || m.illum == 5) ? material.specular : Color(0.0f);
+  // illum 3-7 all trace a mirror reflection weighted by Ks; the transparency and refraction of
+  // 4, 6 and 7 are not supported, so glass renders as an opaque mirror.
+  material.reflective = (m.illum >= 3 && m.illum <= 7) ? material.specular : Color(0.0f);
   return material;
 }
 
@@ -314,7 +316,7 @@ Scene load_obj_scene(const std::string& path, LoadReport* report) {
   for (const std::string& library : obj.missing_libraries)
     r.warnings.push_back(fmt::format("{}: material library '{}' not found: its materials fall back to the default", path,
                                      library));
-  if (!obj.unknown_materials.empty())
+  if (!obj.unknown_materials.empty() && obj.missing_libraries.empty())
     r.warnings.push_back(fmt::format("{}: {} material(s) not defined in any library, using the default: {}", path,
                                      obj.unknown_materials.size(), join(obj.unknown_materials)));
   std::vector<std::string> textured;

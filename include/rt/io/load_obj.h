@@ -21,7 +21,7 @@ Material default_obj_material();
 // Loads the OBJ at `path` and its MTL libraries (relative to the OBJ's directory) as a scene: one
 // model per (shape, material) group, all in the root node; polygons triangulated; `vn` used where
 // every face of a group has them, else smooth angle-weighted normals per group; MTL Ka Kd Ks Ke
-// Ns illum mapped to Material (illum 3 and 5 reflect Ks, others do not reflect). Adds a camera
+// Ns illum mapped to Material (illum 3 to 7 reflect Ks, others do not reflect). Adds a camera
 // framing the geometry and a headlight and records both in `report`, with warnings for a missing
 // MTL file, unknown material names and ignored map_Kd textures. Settings are the defaults.
 // Throws InputError "FILE:LINE: REASON" for a missing or malformed file. The result is validated.

@@ -22,7 +22,7 @@ struct Material {
   Color emission{0.0f};
   float shininess = 1.0f;  // Blinn-Phong exponent sigma, >= 0
   // Weight of the recursive mirror reflection when it differs from `specular` (OBJ/MTL: only
-  // illum 3 and 5 reflect). Unset: `specular`, as in the seed. Set and zero: no reflection ray.
+  // illum 3 to 7 reflect). Unset: `specular`, as in the seed. Set and zero: no reflection ray.
   std::optional<Color> reflective;
 };
 
