@@ -59,9 +59,9 @@ struct ObjFile {
   std::size_t position_count = 0, normal_count = 0;
 };
 
-// 1-based line of the `face`-th (0-based) face that tinyobj keeps: an `f` line with at least three
-// vertices. 0 if there is no such line.
-std::size_t line_of_face(const std::string& path, std::size_t face) {
+// 1-based line of the first `f` line with at least `min_vertices` vertices that comes after
+// `skip` such lines (tinyobj keeps the faces of three or more vertices, in file order). 0 if none.
+std::size_t find_face_line(const std::string& path, std::size_t skip, std::size_t min_vertices) {
   std::ifstream in(path, std::ios::binary);
   std::string line;
   std::size_t number = 0, seen = 0;
@@ -75,14 +75,23 @@ std::size_t line_of_face(const std::string& path, std::size_t face) {
     std::string token;
     std::size_t vertices = 0;
     while (tokens >> token) ++vertices;
-    if (vertices >= 3 && seen++ == face) return number;
+    if (vertices >= min_vertices && seen++ == skip) return number;
   }
   return 0;
 }
 
-[[noreturn]] void fail_at_face(const std::string& path, std::size_t face, const std::string& reason) {
-  const std::size_t line = line_of_face(path, face);
+[[noreturn]] void fail_at_line(const std::string& path, std::size_t line, const std::string& reason) {
   throw InputError(path, line > 0 ? std::to_string(line) : "", reason);
+}
+
+// `face` counts from 0 over the faces tinyobj keeps.
+[[noreturn]] void fail_at_face(const std::string& path, std::size_t face, const std::string& reason) {
+  fail_at_line(path, find_face_line(path, face, 3), reason);
+}
+
+// tinyobj stores the vertex count of a face in a byte: more than 255 vertices wrap around.
+[[noreturn]] void fail_long_face(const std::string& path) {
+  fail_at_line(path, find_face_line(path, 0, 256), "a face has more than 255 vertices (not supported)");
 }
 
 // tinyobj reports a parse failure as text such as "Failed parse `f' line(e.g. zero value for face
@@ -127,12 +136,13 @@ std::vector<std::pair<ObjTriangle, int>> triangulate_shape(const std::string& pa
                                                            const tinyobj::shape_t& shape, std::size_t first_face) {
   std::vector<std::pair<ObjTriangle, int>> triangles;
   const auto& indices = shape.mesh.indices;
+  std::size_t total = 0;
+  for (unsigned char n : shape.mesh.num_face_vertices) total += n;
+  if (total != indices.size()) fail_long_face(path);
   std::size_t offset = 0;
   for (std::size_t f = 0; f < shape.mesh.num_face_vertices.size(); ++f) {
     const std::size_t face = first_face + f, n = shape.mesh.num_face_vertices[f];
-    // tinyobj stores the vertex count of a face in a byte: more than 255 vertices wrap around.
-    if (n < 3 || offset + n > indices.size())
-      fail_at_face(path, face, "a face has more than 255 vertices (not supported)");
+    if (n < 3 || offset + n > indices.size()) fail_long_face(path);
     for (std::size_t k = offset; k < offset + n; ++k) {
       const tinyobj::index_t& index = indices[k];
       if (index.vertex_index < 0 || static_cast<std::size_t>(index.vertex_index) >= obj.position_count)
@@ -169,7 +179,7 @@ std::vector<std::pair<ObjTriangle, int>> triangulate_shape(const std::string& pa
     }
     offset += n;
   }
-  if (offset != indices.size()) fail_at_face(path, first_face, "a face has more than 255 vertices (not supported)");
+  if (offset != indices.size()) fail_long_face(path);
   return triangles;
 }
 
