@@ -1,9 +1,11 @@
 #pragma once
-// Small helpers shared by the test files: hand-built scenes and a scratch directory.
+// Small helpers shared by the test files: hand-built scenes, a scratch directory, running `rt`.
 
 #include <stdlib.h>  // mkdtemp
+#include <sys/wait.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <array>
 #include <cstdint>
 #include <filesystem>
@@ -92,5 +94,26 @@ class TempDir {
  private:
   std::filesystem::path path_;
 };
+
+// Exit status and output of one run of the `rt` executable.
+struct RtRun {
+  int status = -1;
+  std::string out, err;
+};
+
+// Runs `rt ARGS` (ARGS already shell-quoted as needed) with `cwd` as working directory; stdout and
+// stderr go to files in a separate directory, so `cwd` ends up holding exactly what rt wrote.
+inline RtRun run_rt_in(const TempDir& cwd, const std::string& args) {
+  auto quoted = [](const std::string& s) { return "'" + s + "'"; };
+  TempDir capture;
+  const std::string command = "cd " + quoted(cwd.path().string()) + " && " + quoted(RT_EXECUTABLE) + " " + args +
+                              " >" + quoted(capture / "out") + " 2>" + quoted(capture / "err") + " </dev/null";
+  const int raw = std::system(command.c_str());
+  RtRun run;
+  run.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  run.out = read_file(capture / "out");
+  run.err = read_file(capture / "err");
+  return run;
+}
 
 }  // namespace rt_test

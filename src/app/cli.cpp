@@ -14,6 +14,7 @@
 
 #include "rt/accel/accel.h"
 #include "rt/app/progress.h"
+#include "rt/app/scene_options.h"
 #include "rt/core/error.h"
 #include "rt/flatten/flatten.h"
 #include "rt/io/atomic_file.h"
@@ -45,23 +46,21 @@ struct RenderArgs {
   std::string stats_path;
   bool quiet = false;
   GltfOptions gltf;
+  SceneOptions scene;
 };
 
-// --gltf-scene and --camera choose among what a glTF file holds; other formats have one of each.
-class UsageError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
-
-Scene load_scene_or_default(const std::string& path, const GltfOptions& gltf) {
+Scene load_scene_or_default(const std::string& path, const GltfOptions& gltf, LoadReport* report) {
+  // --gltf-scene and --camera choose among what a glTF file holds; other formats have one of each.
   if ((gltf.scene || !gltf.camera.empty()) && !is_gltf_path(path))
     throw UsageError(fmt::format("--gltf-scene and --camera apply to .gltf/.glb scenes only, not '{}'",
                                  path.empty() ? "<built-in default>" : path));
-  return path.empty() ? make_default_scene() : load_scene(path, gltf);
+  return path.empty() ? make_default_scene() : load_scene(path, gltf, report);
 }
 
-void print_notices(const Scene& scene) {
+// What the loaders noted (glTF: Scene::notices) and what was made up for the file (LoadReport).
+void print_notices(const SceneOptions& options, const LoadReport& report, const Scene& scene) {
   for (const std::string& notice : scene.notices) fmt::print(stderr, "rt: notice: {}\n", notice);
+  for (const std::string& notice : scene_notices(options, report, scene)) fmt::print(stderr, "rt: {}\n", notice);
 }
 
 // Output file when -o is absent: the scene's own "output", else "<scene stem>.png" in the working directory.
@@ -89,11 +88,13 @@ int run_render(const RenderArgs& args) {
   accel_options.embree_kernel = parse_embree_kernel(args.embree_kernel);
   const RayOffset ray_offset = parse_ray_offset(args.ray_offset);
 
-  Scene scene = load_scene_or_default(args.scene_path, args.gltf);
-  if (!args.quiet) print_notices(scene);
+  LoadReport report;
+  Scene scene = load_scene_or_default(args.scene_path, args.gltf, &report);
   if (args.width) scene.settings.width = *args.width;
   if (args.height) scene.settings.height = *args.height;
   if (args.max_depth) scene.settings.max_depth = *args.max_depth;
+  apply_scene_options(args.scene, report, scene);
+  if (!args.quiet) print_notices(args.scene, report, scene);
   validate_scene(scene);
   const std::string output = args.output.empty() ? default_output(scene, args.scene_path) : args.output;
   check_output_path(output);  // fail before rendering, not after
@@ -161,9 +162,12 @@ int run_render(const RenderArgs& args) {
   return 0;
 }
 
-int run_info(const std::string& scene_path, const GltfOptions& gltf) {
-  const Scene scene = load_scene_or_default(scene_path, gltf);
-  print_notices(scene);
+int run_info(const std::string& scene_path, const GltfOptions& gltf, const SceneOptions& scene_options) {
+  LoadReport report;
+  Scene scene = load_scene_or_default(scene_path, gltf, &report);
+  apply_scene_options(scene_options, report, scene);
+  print_notices(scene_options, report, scene);
+  validate_scene(scene);
   const FlatScene flat = flatten_scene(scene);
   std::size_t models = 0;
   for (const Node& node : scene.nodes) models += node.models.size();
@@ -220,7 +224,7 @@ int run_cli(int argc, char** argv) {
 
   RenderArgs render_args;
   CLI::App* render = app.add_subcommand("render", "Render a scene (the built-in default scene when none is given)");
-  render->add_option("scene", render_args.scene_path, "Scene file (.json, .test, .gltf, .glb)");
+  render->add_option("scene", render_args.scene_path, "Scene file (.json, .test, .gltf, .glb, .obj)");
   const auto add_gltf_options = [](CLI::App* command, GltfOptions& gltf) {
     command->add_option("--gltf-scene", gltf.scene, "glTF only: index of the scene to show (default: the file's default)")
         ->check(CLI::NonNegativeNumber);
@@ -269,13 +273,16 @@ int run_cli(int argc, char** argv) {
       ->check(CLI::Range(0, 1024))
       ->capture_default_str();
   render->add_option("--stats", render_args.stats_path, "Write ray counts and phase timings as JSON to this file");
-  render->add_flag("-q,--quiet", render_args.quiet, "No progress bar and no summary line");
+  render->add_flag("-q,--quiet", render_args.quiet, "No progress bar, summary line, warnings or notes");
+  add_scene_options(*render, render_args.scene);
 
   std::string info_path;
   GltfOptions info_gltf;
   CLI::App* info = app.add_subcommand("info", "Print what a scene contains (the default scene when none is given)");
-  info->add_option("scene", info_path, "Scene file (.json, .test, .gltf, .glb)");
+  info->add_option("scene", info_path, "Scene file (.json, .test, .gltf, .glb, .obj)");
   add_gltf_options(info, info_gltf);
+  SceneOptions info_scene;
+  add_scene_options(*info, info_scene);
 
   try {
     app.parse(argc, argv);
@@ -286,9 +293,9 @@ int run_cli(int argc, char** argv) {
 
   try {
     if (*render) return run_render(render_args);
-    if (*info) return run_info(info_path, info_gltf);
+    if (*info) return run_info(info_path, info_gltf, info_scene);
   } catch (const UsageError& error) {
-    fmt::print(stderr, "rt: usage error: {}\n", error.what());
+    fmt::print(stderr, "rt: error: {}\n", error.what());
     return 2;
   } catch (const InputError& error) {
     fmt::print(stderr, "rt: error: {}\n", error.what());

@@ -401,7 +401,7 @@ Material GltfReader::read_material(int index) {
     material.diffuse = Color(0.0f);  // the spec's default: white base colour, metallic 1, roughness 1
     material.specular = Color(1.0f);
     material.shininess = 1.0f;
-    material.reflection = Color(0.0f);
+    material.reflective = Color(0.0f);
     return material;
   }
   const tinygltf::Material& source = gltf_.materials[static_cast<std::size_t>(index)];
@@ -436,7 +436,7 @@ Material GltfReader::read_material(int index) {
   material.diffuse = Color(base * (1.0 - metallic + metallic * roughness));
   material.specular = Color(f0 * (1.0 - metallic * roughness));
   material.shininess = static_cast<float>(std::clamp(2.0 / std::max(alpha * alpha, 1e-8) - 2.0, 1.0, 1e4));
-  material.reflection = Color(f0 * std::max(0.0, 1.0 - roughness / kMirrorRoughness));
+  material.reflective = Color(f0 * std::max(0.0, 1.0 - roughness / kMirrorRoughness));
 
   if (source.emissiveFactor.size() != 3) fail(child(at, "emissiveFactor"), "expected 3 numbers");
   Vec3d emission(source.emissiveFactor[0], source.emissiveFactor[1], source.emissiveFactor[2]);

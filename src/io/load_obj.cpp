@@ -2,82 +2,351 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <map>
+#include <regex>
+#include <set>
+#include <sstream>
 #include <unordered_map>
 
 #include <fmt/format.h>
 #include <tiny_obj_loader.h>
 
 #include "rt/core/error.h"
+#include "rt/scene/framing.h"
 #include "rt/scene/shapes.h"
 
 namespace rt {
 
+namespace fs = std::filesystem;
+
 namespace {
 
-std::string first_line(const std::string& text) { return text.substr(0, text.find('\n')); }
+// Reads MTL libraries named by `mtllib` from the OBJ's directory and remembers those it cannot open.
+class MtlLibraryReader : public tinyobj::MaterialReader {
+ public:
+  explicit MtlLibraryReader(fs::path directory) : directory_(std::move(directory)) {}
+
+  bool operator()(const std::string& name, std::vector<tinyobj::material_t>* materials,
+                  std::map<std::string, int>* material_map, std::string* warn, std::string* err) override {
+    std::ifstream in(directory_ / name);
+    if (!in) {
+      missing.push_back(name);
+      return false;
+    }
+    tinyobj::LoadMtl(material_map, materials, &in, warn, err);
+    return true;
+  }
+
+  std::vector<std::string> missing;
+
+ private:
+  fs::path directory_;
+};
+
+// A triangle of OBJ index triples, and the face it came from (0-based, in file order).
+struct ObjTriangle {
+  tinyobj::index_t corners[3];
+  std::size_t face;
+};
+
+struct ObjFile {
+  tinyobj::attrib_t attrib;
+  std::vector<tinyobj::shape_t> shapes;
+  std::vector<tinyobj::material_t> materials;
+  std::vector<std::string> missing_libraries;
+  std::vector<std::string> unknown_materials;  // usemtl names no library defines
+  std::size_t position_count = 0, normal_count = 0;
+};
+
+// 1-based line of the first `f` line with at least `min_vertices` vertices that comes after
+// `skip` such lines (tinyobj keeps the faces of three or more vertices, in file order). 0 if none.
+std::size_t find_face_line(const std::string& path, std::size_t skip, std::size_t min_vertices) {
+  std::ifstream in(path, std::ios::binary);
+  std::string line;
+  std::size_t number = 0, seen = 0;
+  while (std::getline(in, line)) {
+    ++number;
+    const std::size_t start = line.find_first_not_of(" \t");
+    if (start == std::string::npos || line[start] != 'f' || start + 1 >= line.size() ||
+        (line[start + 1] != ' ' && line[start + 1] != '\t'))
+      continue;
+    std::istringstream tokens(line.substr(start + 1));
+    std::string token;
+    std::size_t vertices = 0;
+    while (tokens >> token) ++vertices;
+    if (vertices >= min_vertices && seen++ == skip) return number;
+  }
+  return 0;
+}
+
+[[noreturn]] void fail_at_line(const std::string& path, std::size_t line, const std::string& reason) {
+  throw InputError(path, line > 0 ? std::to_string(line) : "", reason);
+}
+
+// `face` counts from 0 over the faces tinyobj keeps.
+[[noreturn]] void fail_at_face(const std::string& path, std::size_t face, const std::string& reason) {
+  fail_at_line(path, find_face_line(path, face, 3), reason);
+}
+
+// tinyobj stores the vertex count of a face in a byte: more than 255 vertices wrap around.
+[[noreturn]] void fail_long_face(const std::string& path) {
+  fail_at_line(path, find_face_line(path, 0, 256), "a face has more than 255 vertices (not supported)");
+}
+
+// tinyobj reports a parse failure as text such as "Failed parse `f' line(e.g. zero value for face
+// index. line 12.)"; keep the line number apart and say what is wrong in plain words.
+[[noreturn]] void fail_parse(const std::string& path, const std::string& message) {
+  const std::string text = message.substr(0, message.find('\n'));
+  std::smatch match;
+  const std::string line = std::regex_search(text, match, std::regex(R"(line:? (\d+))")) ? match[1].str() : "";
+  std::string reason = text.empty() ? "cannot parse OBJ" : text;
+  if (text.find("`f' line") != std::string::npos)
+    reason = "bad face: a vertex index is 0 or not a number (OBJ indices start at 1)";
+  throw InputError(path, line, reason);
+}
+
+ObjFile read_obj(const std::string& path) {
+  if (!fs::is_regular_file(path)) throw InputError(path, "", "no such file");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, "", "cannot open file");
+  ObjFile obj;
+  MtlLibraryReader mtl_reader(fs::path(path).parent_path());
+  std::string warn, err;
+  // Triangulated here, not by tinyobj, which reads vertex positions before indices are checked.
+  if (!tinyobj::LoadObj(&obj.attrib, &obj.shapes, &obj.materials, &warn, &err, &in, &mtl_reader,
+                        /*triangulate=*/false, /*default_vcols_fallback=*/false))
+    fail_parse(path, err);
+  obj.missing_libraries = mtl_reader.missing;
+  std::set<std::string> unknown;
+  const std::regex unknown_material(R"(material \[ '(.*)' \] not found in \.mtl)");
+  for (auto it = std::sregex_iterator(warn.begin(), warn.end(), unknown_material); it != std::sregex_iterator(); ++it)
+    if (unknown.insert((*it)[1].str()).second) obj.unknown_materials.push_back((*it)[1].str());
+  obj.position_count = obj.attrib.vertices.size() / 3;
+  obj.normal_count = obj.attrib.normals.size() / 3;
+  for (float value : obj.attrib.vertices)
+    if (!std::isfinite(value)) throw InputError(path, "", "a vertex position is not finite");
+  return obj;
+}
+
+// The triangles of every face of `shape`, indices checked; faces are numbered from `first_face`.
+// Triangles pass through; quads are split along the shorter diagonal (as tinyobj does), larger
+// polygons as a fan from their first vertex (exact for convex polygons).
+std::vector<std::pair<ObjTriangle, int>> triangulate_shape(const std::string& path, const ObjFile& obj,
+                                                           const tinyobj::shape_t& shape, std::size_t first_face) {
+  std::vector<std::pair<ObjTriangle, int>> triangles;
+  const auto& indices = shape.mesh.indices;
+  std::size_t total = 0;
+  for (unsigned char n : shape.mesh.num_face_vertices) total += n;
+  if (total != indices.size()) fail_long_face(path);
+  std::size_t offset = 0;
+  for (std::size_t f = 0; f < shape.mesh.num_face_vertices.size(); ++f) {
+    const std::size_t face = first_face + f, n = shape.mesh.num_face_vertices[f];
+    if (n < 3 || offset + n > indices.size()) fail_long_face(path);
+    for (std::size_t k = offset; k < offset + n; ++k) {
+      const tinyobj::index_t& index = indices[k];
+      if (index.vertex_index < 0 || static_cast<std::size_t>(index.vertex_index) >= obj.position_count)
+        fail_at_face(path, face,
+                     index.vertex_index < 0
+                         ? "vertex index out of range: a relative index points before the first vertex"
+                         : fmt::format("vertex index {} out of range ({} vertices defined)", index.vertex_index + 1,
+                                       obj.position_count));
+      if (index.normal_index >= 0 && static_cast<std::size_t>(index.normal_index) >= obj.normal_count)
+        fail_at_face(path, face, fmt::format("normal index {} out of range ({} normals defined)",
+                                             index.normal_index + 1, obj.normal_count));
+      if (index.normal_index < -1)
+        fail_at_face(path, face, "normal index out of range: a relative index points before the first normal");
+    }
+    const int material = f < shape.mesh.material_ids.size() ? shape.mesh.material_ids[f] : -1;
+    auto add = [&](std::size_t a, std::size_t b, std::size_t c) {
+      triangles.push_back({ObjTriangle{{indices[offset + a], indices[offset + b], indices[offset + c]}, face}, material});
+    };
+    if (n == 4) {
+      auto position = [&](std::size_t k) {
+        const auto i = static_cast<std::size_t>(indices[offset + k].vertex_index);
+        return Vec3d(obj.attrib.vertices[3 * i], obj.attrib.vertices[3 * i + 1], obj.attrib.vertices[3 * i + 2]);
+      };
+      const Vec3d d02 = position(2) - position(0), d13 = position(3) - position(1);
+      if (glm::dot(d02, d02) < glm::dot(d13, d13)) {
+        add(0, 1, 2);
+        add(0, 2, 3);
+      } else {
+        add(0, 1, 3);
+        add(1, 2, 3);
+      }
+    } else {
+      for (std::size_t k = 1; k + 1 < n; ++k) add(0, k, k + 1);
+    }
+    offset += n;
+  }
+  if (offset != indices.size()) fail_long_face(path);
+  return triangles;
+}
+
+// One mesh from triangles of the file: vertices are renumbered densely. With `vn` on every corner
+// each distinct (position, normal) pair is a vertex; otherwise each position is, and smooth
+// angle-weighted normals are computed.
+TriangleMesh build_mesh(const ObjFile& obj, const std::vector<ObjTriangle>& triangles) {
+  bool use_normals = obj.normal_count > 0;
+  for (const ObjTriangle& t : triangles)
+    for (const tinyobj::index_t& index : t.corners) {
+      if (index.normal_index < 0) {
+        use_normals = false;
+        continue;
+      }
+      const auto n = static_cast<std::size_t>(index.normal_index);
+      const double length = glm::length(Vec3d(obj.attrib.normals[3 * n], obj.attrib.normals[3 * n + 1],
+                                              obj.attrib.normals[3 * n + 2]));
+      if (!(length > 0.0 && std::isfinite(length))) use_normals = false;
+    }
+
+  TriangleMesh mesh;
+  std::unordered_map<std::uint64_t, std::uint32_t> vertex_of_key;
+  auto vertex_for = [&](const tinyobj::index_t& index) -> std::uint32_t {
+    const auto v = static_cast<std::uint64_t>(index.vertex_index);
+    const std::uint64_t key = use_normals ? v * obj.normal_count + static_cast<std::uint64_t>(index.normal_index) : v;
+    auto [it, inserted] = vertex_of_key.try_emplace(key, static_cast<std::uint32_t>(mesh.positions.size()));
+    if (inserted) {
+      const auto& p = obj.attrib.vertices;
+      mesh.positions.push_back(Vec3f(Vec3d(p[3 * v], p[3 * v + 1], p[3 * v + 2])));
+      if (use_normals) {
+        const auto n = static_cast<std::size_t>(index.normal_index);
+        const auto& q = obj.attrib.normals;
+        mesh.normals.push_back(Vec3f(glm::normalize(Vec3d(q[3 * n], q[3 * n + 1], q[3 * n + 2]))));
+      }
+    }
+    return it->second;
+  };
+  for (const ObjTriangle& t : triangles)
+    mesh.triangles.push_back({vertex_for(t.corners[0]), vertex_for(t.corners[1]), vertex_for(t.corners[2])});
+  if (!use_normals) compute_vertex_normals(mesh);
+  return mesh;
+}
+
+Color color_of(const tinyobj::real_t rgb[3]) { return Color(rgb[0], rgb[1], rgb[2]); }
+
+Material to_material(const tinyobj::material_t& m) {
+  Material material;
+  material.name = m.name;
+  material.ambient = color_of(m.ambient);
+  material.diffuse = color_of(m.diffuse);
+  material.specular = color_of(m.specular);
+  material.emission = color_of(m.emission);
+  material.shininess = static_cast<float>(m.shininess);
+  // illum 3-7 all trace a mirror reflection weighted by Ks; the transparency and refraction of
+  // 4, 6 and 7 are not supported, so glass renders as an opaque mirror.
+  material.reflective = (m.illum >= 3 && m.illum <= 7) ? material.specular : Color(0.0f);
+  return material;
+}
+
+// The view direction of the default camera: -z (the usual front view), unless the surface facing
+// along z clearly faces -z, i.e. the model opens towards -z (the original Cornell box data).
+Vec3d choose_view(const Scene& scene) {
+  double net = 0.0, total = 0.0;
+  for (const Model& model : scene.nodes[scene.root].models)
+    for (const Vec3u& t : model.mesh->triangles) {
+      const Vec3d p0(model.mesh->positions[t.x]), p1(model.mesh->positions[t.y]), p2(model.mesh->positions[t.z]);
+      const double z = glm::cross(p1 - p0, p2 - p0).z;
+      net += z;
+      total += std::abs(z);
+    }
+  return net < -0.25 * total ? Vec3d(0.0, 0.0, 1.0) : Vec3d(0.0, 0.0, -1.0);
+}
+
+std::string join(const std::vector<std::string>& names) {
+  std::string text;
+  for (const std::string& name : names) text += (text.empty() ? "'" : ", '") + name + "'";
+  return text;
+}
 
 }  // namespace
 
 TriangleMesh load_obj_mesh(const std::string& path) {
-  if (!std::filesystem::is_regular_file(path)) throw InputError(path, "", "no such file");
-  tinyobj::ObjReaderConfig config;
-  config.triangulate = true;
-  config.vertex_color = false;
-  tinyobj::ObjReader reader;
-  if (!reader.ParseFromFile(path, config))
-    throw InputError(path, "", first_line(reader.Error().empty() ? "cannot parse OBJ" : reader.Error()));
+  const ObjFile obj = read_obj(path);
+  std::vector<ObjTriangle> triangles;
+  std::size_t face = 0;
+  for (const tinyobj::shape_t& shape : obj.shapes) {
+    for (const auto& [triangle, material] : triangulate_shape(path, obj, shape, face)) triangles.push_back(triangle);
+    face += shape.mesh.num_face_vertices.size();
+  }
+  return build_mesh(obj, triangles);
+}
 
-  const tinyobj::attrib_t& attrib = reader.GetAttrib();
-  const std::size_t position_count = attrib.vertices.size() / 3, normal_count = attrib.normals.size() / 3;
-  bool all_have_normals = normal_count > 0;
-  for (const tinyobj::shape_t& shape : reader.GetShapes())
-    for (const tinyobj::index_t& index : shape.mesh.indices) {
-      if (index.vertex_index < 0 || static_cast<std::size_t>(index.vertex_index) >= position_count)
-        throw InputError(path, fmt::format("shape '{}'", shape.name),
-                         fmt::format("vertex index {} out of range (file has {} vertices)", index.vertex_index + 1,
-                                     position_count));
-      if (index.normal_index < 0 || static_cast<std::size_t>(index.normal_index) >= normal_count)
-        all_have_normals = false;
+Material default_obj_material() {
+  Material material;
+  material.name = "(default)";
+  material.ambient = Color(0.1f);
+  material.diffuse = Color(0.7f);
+  material.specular = Color(0.2f);
+  material.shininess = 32.0f;
+  material.reflective = Color(0.0f);
+  return material;
+}
+
+Scene load_obj_scene(const std::string& path, LoadReport* report) {
+  const ObjFile obj = read_obj(path);
+  Scene scene;
+  scene.source = path;
+  for (const tinyobj::material_t& m : obj.materials) scene.materials.push_back(to_material(m));
+  std::optional<std::uint32_t> default_material;
+  Node root;
+  root.name = fs::path(path).filename().string();
+
+  std::size_t face = 0;
+  for (const tinyobj::shape_t& shape : obj.shapes) {
+    // Groups in order of first use within the shape.
+    std::vector<int> order;
+    std::map<int, std::vector<ObjTriangle>> groups;
+    for (const auto& [triangle, material] : triangulate_shape(path, obj, shape, face)) {
+      const int id = material >= 0 && static_cast<std::size_t>(material) < obj.materials.size() ? material : -1;
+      auto [it, inserted] = groups.try_emplace(id);
+      if (inserted) order.push_back(id);
+      it->second.push_back(triangle);
     }
-
-  TriangleMesh mesh;
-  auto position = [&](std::size_t i) {
-    return Vec3f(Vec3d(attrib.vertices[3 * i], attrib.vertices[3 * i + 1], attrib.vertices[3 * i + 2]));
-  };
-  // Without normals the OBJ vertex list maps one to one; with them, each distinct
-  // (position, normal) pair becomes one mesh vertex.
-  std::unordered_map<std::uint64_t, std::uint32_t> vertex_of_pair;
-  auto vertex_for = [&](const tinyobj::index_t& index) -> std::uint32_t {
-    if (!all_have_normals) return static_cast<std::uint32_t>(index.vertex_index);
-    const std::uint64_t key = static_cast<std::uint64_t>(index.vertex_index) * normal_count + index.normal_index;
-    auto [it, inserted] = vertex_of_pair.try_emplace(key, static_cast<std::uint32_t>(mesh.positions.size()));
-    if (inserted) {
-      const std::size_t n = static_cast<std::size_t>(index.normal_index);
-      const Vec3d normal(attrib.normals[3 * n], attrib.normals[3 * n + 1], attrib.normals[3 * n + 2]);
-      const double length = glm::length(normal);
-      mesh.positions.push_back(position(static_cast<std::size_t>(index.vertex_index)));
-      mesh.normals.push_back(length > 0.0 && std::isfinite(length) ? Vec3f(normal / length) : Vec3f(0, 0, 1));
-    }
-    return it->second;
-  };
-  if (!all_have_normals)
-    for (std::size_t i = 0; i < position_count; ++i) mesh.positions.push_back(position(i));
-
-  for (const tinyobj::shape_t& shape : reader.GetShapes()) {
-    const auto& indices = shape.mesh.indices;
-    std::size_t offset = 0;
-    for (unsigned char face_vertices : shape.mesh.num_face_vertices) {
-      if (face_vertices == 3)
-        mesh.triangles.push_back(
-            {vertex_for(indices[offset]), vertex_for(indices[offset + 1]), vertex_for(indices[offset + 2])});
-      offset += face_vertices;  // points and lines (fewer than 3 vertices) are not surfaces
+    face += shape.mesh.num_face_vertices.size();
+    for (int id : order) {
+      std::uint32_t material;
+      if (id >= 0) {
+        material = static_cast<std::uint32_t>(id);
+      } else {
+        if (!default_material) {
+          default_material = static_cast<std::uint32_t>(scene.materials.size());
+          scene.materials.push_back(default_obj_material());
+        }
+        material = *default_material;
+      }
+      root.models.push_back({std::make_shared<const TriangleMesh>(build_mesh(obj, groups[id])), material});
     }
   }
-  for (const Vec3f& p : mesh.positions)
-    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
-      throw InputError(path, "", "a vertex position is not finite");
-  if (!all_have_normals) compute_vertex_normals(mesh);
-  return mesh;
+  if (scene.materials.empty()) scene.materials.push_back(default_obj_material());
+  scene.nodes.push_back(std::move(root));
+
+  LoadReport local;
+  LoadReport& r = report ? *report : local;
+  for (const std::string& library : obj.missing_libraries)
+    r.warnings.push_back(fmt::format("{}: material library '{}' not found: its materials fall back to the default", path,
+                                     library));
+  if (!obj.unknown_materials.empty() && obj.missing_libraries.empty())
+    r.warnings.push_back(fmt::format("{}: {} material(s) not defined in any library, using the default: {}", path,
+                                     obj.unknown_materials.size(), join(obj.unknown_materials)));
+  std::vector<std::string> textured;
+  for (const tinyobj::material_t& m : obj.materials)
+    if (!m.diffuse_texname.empty()) textured.push_back(m.name);
+  if (!textured.empty())
+    r.warnings.push_back(fmt::format("{}: map_Kd ignored in {} material(s) (textures are not supported yet): {}", path,
+                                     textured.size(), join(textured)));
+  std::size_t triangles = 0;
+  for (const Model& model : scene.nodes[0].models) triangles += model.mesh->triangles.size();
+  if (triangles == 0) r.warnings.push_back(fmt::format("{}: no faces: the image shows only the background", path));
+
+  r.bounds = world_bounds(scene);
+  r.view = choose_view(scene);
+  r.camera_framed = true;
+  scene.camera = frame_bounds(r.bounds, double(scene.settings.width) / scene.settings.height, r.view);
+  scene.lights = {make_headlight(scene.camera)};
+  r.headlight_added = true;
+  validate_scene(scene);
+  return scene;
 }
 
 }  // namespace rt

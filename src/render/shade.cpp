@@ -50,6 +50,7 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
                           : Vec3d(1.0);
   const Vec3d ambient = Vec3d(material.ambient) * texel, diffuse = Vec3d(material.diffuse) * texel;
   const Vec3d specular(material.specular);
+  const Vec3d reflective(material.reflective.value_or(material.specular));
 
   Vec3d radiance(material.emission);
   for (const Light& light : context.scene.lights) {
@@ -93,14 +94,13 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
     radiance += intensity * (ambient + diffuse * n_dot_l + specular * std::pow(n_dot_h, double(material.shininess)));
   }
 
-  if (depth < context.scene.settings.max_depth) {
+  if (depth < context.scene.settings.max_depth && (!material.reflective || reflective != Vec3d(0.0))) {
     const Vec3d reflected = direction - 2.0 * glm::dot(direction, normal) * normal;
     Ray reflection_ray;
     reflection_ray.origin = offset_ray_origin(context.ray_offset, surface, reflected);
     reflection_ray.direction = Vec3f(reflected);
     ++counts.reflection;
-    const Vec3d reflection = material.reflection ? Vec3d(*material.reflection) : specular;
-    radiance += reflection * Vec3d(find_color(context, reflection_ray, depth + 1, counts));
+    radiance += reflective * Vec3d(find_color(context, reflection_ray, depth + 1, counts));
   }
   return Color(radiance);
 }

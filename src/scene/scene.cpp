@@ -57,7 +57,7 @@ void validate_scene(const Scene& scene) {
     check_color(scene, where, m.diffuse);
     check_color(scene, where, m.specular);
     check_color(scene, where, m.emission);
-    if (m.reflection) check_color(scene, where, *m.reflection);
+    if (m.reflective) check_color(scene, where, *m.reflective);
     if (!std::isfinite(m.shininess) || m.shininess < 0.0f)
       throw InputError(scene.source, where, "shininess must be finite and >= 0");
   }

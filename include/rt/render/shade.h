@@ -34,11 +34,13 @@ struct ShadingContext {
 
 // The seed's FindColor for a ray whose origin and direction are world space:
 //   R = E + sum_j V_j L_j (C_ambient + C_diffuse max(n.l_j, 0) + C_specular max(n.h_j, 0)^sigma)
-//       + C_specular FindColor(reflected ray)
+//       + C_reflective FindColor(reflected ray)
+// where C_reflective is Material::reflective when set, else C_specular (the seed's formula); an
+// explicitly zero C_reflective traces no reflection ray.
 // with Blinn-Phong half vectors h_j = normalize(l_j + v), V_j the 0/1 shadow-ray visibility and
 // L_j the light colour divided by the point-light attenuation (and scaled by the spot falloff).
 // C_diffuse and C_ambient are multiplied by the material's diffuse texture at the hit; the
-// reflection is weighted by Material::reflection when set instead of C_specular. depth 0 is the primary hit; the
+// reflection is weighted by Material::reflective when set instead of C_specular. depth 0 is the primary hit; the
 // reflection recurses while depth < max_depth. A miss returns settings.background.
 // Computed in double, returned as float32 linear RGB.
 Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCounts& counts);

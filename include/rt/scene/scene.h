@@ -34,11 +34,14 @@ struct Material {
   std::string name;
   Color ambient{0.0f};
   Color diffuse{0.0f};
-  Color specular{0.0f};   // also weights the recursive mirror reflection, unless `reflection` is set
+  Color specular{0.0f};   // also weights the recursive mirror reflection unless `reflective` is set
   Color emission{0.0f};
   float shininess = 1.0f;  // Blinn-Phong exponent sigma, >= 0
-  std::optional<Color> reflection;  // weight of the mirror reflection when it differs from `specular`
-  Texture diffuse_texture;          // multiplies `diffuse` and `ambient` at each hit
+  // Weight of the recursive mirror reflection when it differs from `specular` (OBJ/MTL: only
+  // illum 3 to 7 reflect; glTF: only smooth surfaces). Unset: `specular`, as in the seed. Set and
+  // zero: no reflection ray.
+  std::optional<Color> reflective;
+  Texture diffuse_texture;  // multiplies `diffuse` and `ambient` at each hit
 };
 
 // A light in world space. position.w == 0: directional, (x, y, z) is the direction towards the

@@ -1,0 +1,54 @@
+#pragma once
+// Camera, light and background flags shared by `rt render` and `rt info`: they supply what a
+// format lacks (OBJ has no camera or lights) or override what a scene file says.
+
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "rt/io/load_scene.h"
+#include "rt/scene/scene.h"
+
+namespace CLI {
+class App;
+}
+
+namespace rt {
+
+// A command-line mistake found after parsing (e.g. a camera made unusable by a flag): the CLI
+// prints what() and exits with status 2.
+class UsageError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Values of the flags as parsed; empty vectors and nullopt mean "not given".
+struct SceneOptions {
+  std::vector<double> eye, target, up;  // 3 values each (the last occurrence counts)
+  std::optional<double> fovy;           // degrees, in (0, 180)
+  std::vector<std::vector<double>> point_lights;        // X Y Z R G B each
+  std::vector<std::vector<double>> directional_lights;  // X Y Z (towards the light) R G B each
+  std::vector<double> background;                       // R G B
+
+  bool camera_given() const { return !eye.empty() || !target.empty() || !up.empty() || fovy.has_value(); }
+  bool lights_given() const { return !point_lights.empty() || !directional_lights.empty(); }
+};
+
+// Adds --eye, --target, --up, --fovy, --point-light (repeatable), --directional-light
+// (repeatable) and --background to `app`. Parsing rejects wrong counts, non-numbers, non-finite
+// numbers and a fovy outside (0, 180).
+void add_scene_options(CLI::App& app, SceneOptions& options);
+
+// Applies the flags to a loaded scene whose settings (image size) are final. A camera the loader
+// framed (report.camera_framed) is framed again for the final aspect ratio and --fovy; then
+// every given camera field replaces the scene's. Light flags replace a loader's headlight and add
+// to a file's own lights; without them a headlight follows the final eye. Throws UsageError naming
+// the flag when a colour is negative, a direction zero or the resulting camera unusable.
+void apply_scene_options(const SceneOptions& options, const LoadReport& report, Scene& scene);
+
+// Lines for stderr (without the "rt: " prefix) telling what the loader warned about and what was
+// made up for the file after the flags were applied: "warning: ..." and "note: ...".
+std::vector<std::string> scene_notices(const SceneOptions& options, const LoadReport& report, const Scene& scene);
+
+}  // namespace rt
