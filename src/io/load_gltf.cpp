@@ -72,9 +72,10 @@ struct Placed {
 // uses and naming the JSON path of each problem.
 class GltfReader {
  public:
-  GltfReader(std::string path, const tinygltf::Model& model, const EmbeddedImages& embedded, const GltfOptions& options)
+  GltfReader(std::string path, const tinygltf::Model& model, const EmbeddedImages& embedded, const GltfOptions& options,
+             LoadReport* report)
       : path_(std::move(path)), directory_(fs::path(path_).parent_path()), gltf_(model), embedded_(embedded),
-        options_(options) {}
+        options_(options), report_(report) {}
 
   Scene read();
 
@@ -115,6 +116,7 @@ class GltfReader {
   std::map<int, bool> image_readable_;
   std::map<std::string, std::size_t> skipped_;  // notice text -> occurrences
   std::vector<std::string> notices_;
+  LoadReport* report_ = nullptr;  // receives a made-up camera or headlight; may be null
   Vec3d lo_{std::numeric_limits<double>::infinity()}, hi_{-std::numeric_limits<double>::infinity()};
 };
 
@@ -566,7 +568,14 @@ void GltfReader::read_camera(const std::vector<Placed>& placed, Scene& scene) {
     scene.camera.target = center;
     scene.camera.eye = center + glm::normalize(Vec3d(0.5, 0.4, 1.0)) * (1.1 * radius / std::sin(22.5 * kPi / 180.0));
     scene.camera.up = Vec3d(0.0, 1.0, 0.0);
-    notices_.push_back(fmt::format("{}: no camera: framing the scene's bounding box from the front (+z), right and above", path_));
+    if (report_) {
+      report_->camera_framed = true;
+      report_->bounds = empty ? Bounds3d{} : Bounds3d{lo_, hi_};
+      report_->view = scene.camera.target - scene.camera.eye;
+    } else {
+      notices_.push_back(
+          fmt::format("{}: no camera: framing the scene's bounding box from the front (+z), right and above", path_));
+    }
     return;
   }
   const tinygltf::Camera& source = gltf_.cameras[static_cast<std::size_t>(camera)];
@@ -631,7 +640,10 @@ void GltfReader::read_lights(const std::vector<Placed>& placed, Scene& scene) {
     Light headlight;
     headlight.position = Vec4d(scene.camera.eye, 1.0);
     scene.lights.push_back(headlight);
-    notices_.push_back(fmt::format("{}: no lights: using a white headlight at the camera", path_));
+    if (report_)
+      report_->headlight_added = true;
+    else
+      notices_.push_back(fmt::format("{}: no lights: using a white headlight at the camera", path_));
   }
 }
 
@@ -727,7 +739,7 @@ InputError tinygltf_error(const std::string& path, const std::string& message) {
 
 }  // namespace
 
-Scene load_gltf_scene(const std::string& path, const GltfOptions& options) {
+Scene load_gltf_scene(const std::string& path, const GltfOptions& options, LoadReport* report) {
   std::error_code error;
   if (!fs::is_regular_file(path, error)) throw InputError(path, "", fs::exists(path, error) ? "not a regular file" : "no such file");
   char magic[4] = {};
@@ -743,7 +755,7 @@ Scene load_gltf_scene(const std::string& path, const GltfOptions& options) {
                          : loader.LoadASCIIFromFile(&model, &errors, &warnings, path);
   if (!ok || !errors.empty()) throw tinygltf_error(path, errors);
 
-  Scene scene = GltfReader(path, model, embedded, options).read();
+  Scene scene = GltfReader(path, model, embedded, options, report).read();
   validate_scene(scene);
   return scene;
 }

@@ -465,7 +465,7 @@ Scene load_scene(const std::string& path, const GltfOptions& gltf, LoadReport* r
   const std::string ext = lower_extension(path);
   if (ext == ".json") return parse_scene_json(read_text_file(path), path);
   if (ext == ".test") return load_test_scene(path);  // CSE167x ray-tracer scenes, validated
-  if (is_gltf_path(path)) return load_gltf_scene(path, gltf);  // validated
+  if (is_gltf_path(path)) return load_gltf_scene(path, gltf, report);  // validated
   if (ext == ".obj") return load_obj_scene(path, report);     // Wavefront OBJ + MTL, validated
   if (!fs::exists(path)) throw InputError(path, "", "no such file");
   throw InputError(path, "",

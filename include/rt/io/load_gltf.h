@@ -6,6 +6,7 @@
 #include <optional>
 #include <string>
 
+#include "rt/io/load_report.h"
 #include "rt/scene/scene.h"
 
 namespace rt {
@@ -20,8 +21,10 @@ struct GltfOptions {
 // Loads the glTF file at `path` (.glb when it starts with the binary magic "glTF") into a scene
 // graph: one node per glTF node under an identity root, one model per triangle primitive.
 // Anything skipped or substituted (primitive modes, unsampled textures, a missing camera or
-// lights, an unreadable texture) is explained in Scene::notices. The result is validated.
+// lights, an unreadable texture) is explained in Scene::notices, except a made-up camera or
+// headlight, which is recorded in `report` if given (as the OBJ loader does, so that the CLI's
+// camera and light flags replace them). The result is validated.
 // Throws InputError naming the file, the JSON path (e.g. /meshes/0/primitives/1/indices) and the reason.
-Scene load_gltf_scene(const std::string& path, const GltfOptions& options = {});
+Scene load_gltf_scene(const std::string& path, const GltfOptions& options = {}, LoadReport* report = nullptr);
 
 }  // namespace rt
