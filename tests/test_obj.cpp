@@ -19,6 +19,7 @@
 #include "rt/io/image_io.h"
 #include "rt/io/load_obj.h"
 #include "rt/io/load_scene.h"
+#include "rt/render/texture.h"
 #include "rt/scene/framing.h"
 #include "rt/scene/shapes.h"
 #include "test_util.h"
@@ -126,9 +127,11 @@ TEST_CASE("OBJ scene: one model per material, MTL mapped, quads triangulated", "
     for (const rt::Vec3f& n : mesh.normals) CHECK(n == rt::Vec3f(0, 0, 1));
   }
 
-  // map_Kd is reported, not used; the camera and a headlight are made up and reported.
+  // A map_Kd that cannot be read is reported and dropped; the camera and a headlight are made up
+  // and reported.
   REQUIRE(report.warnings.size() == 1);
-  CHECK_THAT(report.warnings[0], Catch::Contains("map_Kd ignored in 1 material(s)") && Catch::Contains("'mirror'"));
+  CHECK_THAT(report.warnings[0], Catch::Contains("material 'mirror': map_Kd") && Catch::Contains("cannot be read"));
+  CHECK(mirror.diffuse_texture.empty());
   CHECK(report.camera_framed);
   CHECK(report.headlight_added);
   CHECK(report.view == rt::Vec3d(0, 0, -1));
@@ -399,4 +402,30 @@ TEST_CASE("every OBJ of the shared corpus renders", "[obj][cli]") {
       CHECK(covered > 0.05);
     }
   }
+}
+
+TEST_CASE("OBJ scene: map_Kd is sampled at the vt coordinates, v = 1 at the image's top", "[obj]") {
+  rt_test::TempDir dir;
+  // A 1 x 2 texture: top row red, bottom row green (8-bit sRGB 255 decodes to linear 1).
+  rt::Image texture;
+  texture.width = 1;
+  texture.height = 2;
+  texture.pixels = {rt::Color(1, 0, 0), rt::Color(0, 1, 0)};
+  rt::write_image(texture, (dir.path() / "two.png").string());
+  write_file(dir.path() / "t.mtl", "newmtl t\nKd 1 1 1\nmap_Kd two.png\n");
+  write_file(dir.path() / "t.obj",
+             "mtllib t.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl t\nf 1/1 2/2 3/3\n");
+  rt::LoadReport report;
+  const rt::Scene scene = rt::load_scene(dir / "t.obj", {}, &report);
+  CHECK(report.warnings.empty());
+  REQUIRE(scene.materials.size() == 1);
+  CHECK_FALSE(scene.materials[0].diffuse_texture.empty());
+  const rt::TriangleMesh& mesh = *scene.nodes[scene.root].models.at(0).mesh;
+  REQUIRE(mesh.texcoords.size() == 3);
+  CHECK(mesh.texcoords[2] == rt::Vec2f(0, 0));  // vt 0 1: the top of the image
+  CHECK(mesh.texcoords[0] == rt::Vec2f(0, 1));
+  const rt::TextureSampler sampler(scene);
+  REQUIRE(sampler.has_diffuse(0));
+  CHECK(sampler.diffuse(0, {0.5f, 0.25f}) == rt::Color(1, 0, 0));
+  CHECK(sampler.diffuse(0, {0.5f, 0.75f}) == rt::Color(0, 1, 0));
 }

@@ -13,6 +13,7 @@
 #include <tiny_obj_loader.h>
 
 #include "rt/core/error.h"
+#include "rt/render/texture.h"
 #include "rt/scene/framing.h"
 #include "rt/scene/shapes.h"
 
@@ -185,8 +186,15 @@ std::vector<std::pair<ObjTriangle, int>> triangulate_shape(const std::string& pa
 
 // One mesh from triangles of the file: vertices are renumbered densely. With `vn` on every corner
 // each distinct (position, normal) pair is a vertex; otherwise each position is, and smooth
-// angle-weighted normals are computed.
+// angle-weighted normals are computed. With a valid `vt` on every corner the texture coordinate
+// joins the key, stored as (u, 1 - v): OBJ puts v = 0 at the image's bottom row, OIIO at its top.
 TriangleMesh build_mesh(const ObjFile& obj, const std::vector<ObjTriangle>& triangles) {
+  const std::size_t texcoord_count = obj.attrib.texcoords.size() / 2;
+  bool use_texcoords = texcoord_count > 0;
+  for (const ObjTriangle& t : triangles)
+    for (const tinyobj::index_t& index : t.corners)
+      if (index.texcoord_index < 0 || static_cast<std::size_t>(index.texcoord_index) >= texcoord_count)
+        use_texcoords = false;
   bool use_normals = obj.normal_count > 0;
   for (const ObjTriangle& t : triangles)
     for (const tinyobj::index_t& index : t.corners) {
@@ -204,7 +212,8 @@ TriangleMesh build_mesh(const ObjFile& obj, const std::vector<ObjTriangle>& tria
   std::unordered_map<std::uint64_t, std::uint32_t> vertex_of_key;
   auto vertex_for = [&](const tinyobj::index_t& index) -> std::uint32_t {
     const auto v = static_cast<std::uint64_t>(index.vertex_index);
-    const std::uint64_t key = use_normals ? v * obj.normal_count + static_cast<std::uint64_t>(index.normal_index) : v;
+    std::uint64_t key = use_normals ? v * obj.normal_count + static_cast<std::uint64_t>(index.normal_index) : v;
+    if (use_texcoords) key = key * texcoord_count + static_cast<std::uint64_t>(index.texcoord_index);
     auto [it, inserted] = vertex_of_key.try_emplace(key, static_cast<std::uint32_t>(mesh.positions.size()));
     if (inserted) {
       const auto& p = obj.attrib.vertices;
@@ -213,6 +222,10 @@ TriangleMesh build_mesh(const ObjFile& obj, const std::vector<ObjTriangle>& tria
         const auto n = static_cast<std::size_t>(index.normal_index);
         const auto& q = obj.attrib.normals;
         mesh.normals.push_back(Vec3f(glm::normalize(Vec3d(q[3 * n], q[3 * n + 1], q[3 * n + 2]))));
+      }
+      if (use_texcoords) {
+        const auto c = static_cast<std::size_t>(index.texcoord_index);
+        mesh.texcoords.push_back(Vec2f(obj.attrib.texcoords[2 * c], 1.0f - obj.attrib.texcoords[2 * c + 1]));
       }
     }
     return it->second;
@@ -225,8 +238,10 @@ TriangleMesh build_mesh(const ObjFile& obj, const std::vector<ObjTriangle>& tria
 
 Color color_of(const tinyobj::real_t rgb[3]) { return Color(rgb[0], rgb[1], rgb[2]); }
 
-Material to_material(const tinyobj::material_t& m) {
+// `directory`: where the OBJ lives; MTL texture paths are relative to it.
+Material to_material(const tinyobj::material_t& m, const fs::path& directory) {
   Material material;
+  if (!m.diffuse_texname.empty()) material.diffuse_texture.path = (directory / m.diffuse_texname).lexically_normal().string();
   material.name = m.name;
   material.ambient = color_of(m.ambient);
   material.diffuse = color_of(m.diffuse);
@@ -287,7 +302,8 @@ Scene load_obj_scene(const std::string& path, LoadReport* report) {
   const ObjFile obj = read_obj(path);
   Scene scene;
   scene.source = path;
-  for (const tinyobj::material_t& m : obj.materials) scene.materials.push_back(to_material(m));
+  for (const tinyobj::material_t& m : obj.materials)
+    scene.materials.push_back(to_material(m, fs::path(path).parent_path()));
   std::optional<std::uint32_t> default_material;
   Node root;
   root.name = fs::path(path).filename().string();
@@ -329,12 +345,15 @@ Scene load_obj_scene(const std::string& path, LoadReport* report) {
   if (!obj.unknown_materials.empty() && obj.missing_libraries.empty())
     r.warnings.push_back(fmt::format("{}: {} material(s) not defined in any library, using the default: {}", path,
                                      obj.unknown_materials.size(), join(obj.unknown_materials)));
-  std::vector<std::string> textured;
-  for (const tinyobj::material_t& m : obj.materials)
-    if (!m.diffuse_texname.empty()) textured.push_back(m.name);
-  if (!textured.empty())
-    r.warnings.push_back(fmt::format("{}: map_Kd ignored in {} material(s) (textures are not supported yet): {}", path,
-                                     textured.size(), join(textured)));
+  // A map_Kd that cannot be read falls back to Kd alone, as glTF textures do.
+  for (Material& material : scene.materials) {
+    std::string reason;
+    if (!material.diffuse_texture.empty() && !texture_is_readable(material.diffuse_texture, reason)) {
+      r.warnings.push_back(fmt::format("{}: material '{}': map_Kd '{}' cannot be read ({}); using Kd alone", path,
+                                       material.name, material.diffuse_texture.path, reason));
+      material.diffuse_texture = {};
+    }
+  }
   std::size_t triangles = 0;
   for (const Model& model : scene.nodes[0].models) triangles += model.mesh->triangles.size();
   if (triangles == 0) r.warnings.push_back(fmt::format("{}: no faces: the image shows only the background", path));
