@@ -24,26 +24,11 @@ namespace {
 using rt_test::read_file;
 using rt_test::write_file;
 
-struct Run {
-  int status = -1;
-  std::string out, err;
-};
+using Run = rt_test::RtRun;
 
 std::string quoted(const std::string& s) { return "'" + s + "'"; }
 
-// Runs `rt ARGS` with `cwd` as working directory. stdout and stderr go to files in a separate
-// directory, so `cwd` ends up holding exactly what rt wrote.
-Run run_rt(const rt_test::TempDir& cwd, const std::string& args) {
-  rt_test::TempDir capture;
-  const std::string command = "cd " + quoted(cwd.path().string()) + " && " + quoted(RT_EXECUTABLE) + " " + args +
-                              " >" + quoted(capture / "out") + " 2>" + quoted(capture / "err") + " </dev/null";
-  const int raw = std::system(command.c_str());
-  Run run;
-  run.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-  run.out = read_file(capture / "out");
-  run.err = read_file(capture / "err");
-  return run;
-}
+Run run_rt(const rt_test::TempDir& cwd, const std::string& args) { return rt_test::run_rt_in(cwd, args); }
 
 std::size_t line_count(const std::string& text) { return std::count(text.begin(), text.end(), '\n'); }
 
