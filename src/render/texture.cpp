@@ -47,12 +47,17 @@ struct TextureSampler::Impl {
     OIIO::TextureSystem::TextureHandle* handle = nullptr;
     OIIO::TextureOpt::Wrap wrap_s = OIIO::TextureOpt::WrapPeriodic, wrap_t = OIIO::TextureOpt::WrapPeriodic;
   };
+  // The process-wide shared TextureSystem: OIIO 2.4's TextureSystem::destroy frees a private one with a
+  // mismatched sized delete (AddressSanitizer: new-delete-type-mismatch inside libOpenImageIO), while the
+  // shared one is never freed by destroy(). Files this sampler opened are invalidated on teardown, so a
+  // later sampler re-reads them if they changed on disk.
   OIIO::TextureSystem* system = nullptr;
-  std::vector<Slot> slots;  // one per material
-  fs::path temp_dir;        // empty unless an embedded image needed a file
+  std::vector<Slot> slots;            // one per material
+  std::vector<std::string> files;     // every file this sampler looked up
+  fs::path temp_dir;                  // empty unless an embedded image needed a file
 
   ~Impl() {
-    if (system) OIIO::TextureSystem::destroy(system);
+    for (const std::string& file : files) system->invalidate(OIIO::ustring(file));
     std::error_code ignored;
     if (!temp_dir.empty()) fs::remove_all(temp_dir, ignored);
   }
@@ -78,12 +83,13 @@ TextureSampler::TextureSampler(const Scene& scene) : impl_(std::make_unique<Impl
     const Texture& texture = scene.materials[i].diffuse_texture;
     if (texture.empty()) continue;
     if (!impl_->system) {
-      impl_->system = OIIO::TextureSystem::create(/*shared=*/false);
+      impl_->system = OIIO::TextureSystem::create(/*shared=*/true);
       impl_->system->attribute("automip", 0);      // lookups never leave MIP level 0
       impl_->system->attribute("gray_to_rgb", 1);  // grey (+ alpha) images give grey RGB
     }
     const std::string path = texture.encoded ? impl_->file_for(texture.encoded, written) : texture.path;
     if (path.empty()) continue;
+    impl_->files.push_back(path);
     Impl::Slot& slot = impl_->slots[i];
     slot.handle = impl_->system->get_texture_handle(OIIO::ustring(path));
     slot.wrap_s = oiio_wrap(texture.wrap_s);
