@@ -31,6 +31,7 @@ struct Fixture {
   rt::Scene scene;
   rt::FlatScene flat;
   std::unique_ptr<rt::Accel> accel;
+  rt::EffectsOptions effects;  // the plan is made per shade() call, after sections edit the scene
 
   Fixture(rt::Scene s, rt::AccelKind kind) : scene(std::move(s)), flat(rt::flatten_scene(scene)) {
     accel = rt::build_accel(kind, flat);
@@ -42,7 +43,8 @@ struct Fixture {
     rt::Ray ray;
     ray.origin = origin;
     ray.direction = direction;
-    return rt::find_color(rt::ShadingContext{scene, flat, *accel}, ray, depth, counts);
+    const rt::EffectsPlan plan = rt::plan_effects(scene, flat, rt::RayOffset{}, effects);
+    return rt::find_color(rt::ShadingContext{scene, flat, *accel, plan}, ray, depth, counts);
   }
 };
 
@@ -102,7 +104,8 @@ TEST_CASE("diffuse shading from one directional light", "[shade]") {
   const double k = 1.0 / std::sqrt(2.0);
   check_color(c, {1.0 * 0.8 * k, 0.5 * 0.4 * k, 2.0 * 0.2 * k});
   CHECK(counts.camera == 0);  // find_color counts secondary rays only; the render loop counts camera rays
-  CHECK(counts.shadow == 1);
+  CHECK(counts.shadow == 0);  // a lone floor is convex: facing the light, it is lit for certain
+  CHECK(counts.skipped[int(rt::SkipRule::convex_facing)] == 1);
   CHECK(counts.reflection == 0);
 
   SECTION("the light's direction need not be unit length") {
@@ -115,13 +118,19 @@ TEST_CASE("diffuse shading from one directional light", "[shade]") {
     rt::RayCounts again;
     check_color(f.shade(kPoint + Vec3f(0, 0, 2), {0, 0, -1}, again), Vec3d(0.0));
   }
-  SECTION("with max_depth 1 a reflection ray is traced, weighted by the (zero) specular colour") {
+  SECTION("with max_depth 1 the reflection, weighted by the (zero) specular colour, is pruned") {
     f.scene.settings.max_depth = 1;
     f.scene.settings.background = Color(0.5f, 0.6f, 0.7f);
     rt::RayCounts again;
     check_color(f.shade(kPoint + Vec3f(0, 0, 2), {0, 0, -1}, again), {0.8 * k, 0.2 * k, 0.4 * k});
-    CHECK(again.shadow == 1);
-    CHECK(again.reflection == 1);
+    CHECK(again.skipped[int(rt::SkipRule::convex_facing)] == 1);
+    CHECK(again.reflection == 0);
+    CHECK(again.skipped[int(rt::SkipRule::black_reflection)] == 1);
+    f.effects.prune = false;  // --no-prune traces it, and it adds zero
+    rt::RayCounts unpruned;
+    check_color(f.shade(kPoint + Vec3f(0, 0, 2), {0, 0, -1}, unpruned), {0.8 * k, 0.2 * k, 0.4 * k});
+    CHECK(unpruned.reflection == 1);
+    CHECK(unpruned.skipped_total() == 0);
   }
 }
 
@@ -162,7 +171,8 @@ TEST_CASE("Blinn-Phong specular term", "[shade]") {
     check_color(f.shade(kPoint + Vec3f(0, 0, 2), {0, 0, -1}, counts),
                 Vec3d(0.1) + Vec3d(0.3) * nl + cs * std::pow(nh, 10.0));
   }
-  CHECK(counts.shadow == 1);
+  CHECK(counts.shadow == 0);  // a lone floor is convex: facing the light, it is lit for certain
+  CHECK(counts.skipped[int(rt::SkipRule::convex_facing)] == 1);
 }
 
 TEST_CASE("point lights are attenuated by 1 / (c0 + c1 d + c2 d^2)", "[shade]") {
@@ -177,7 +187,8 @@ TEST_CASE("point lights are attenuated by 1 / (c0 + c1 d + c2 d^2)", "[shade]") 
               kind);
     rt::RayCounts counts;
     check_color(f.shade(kPoint + Vec3f(0, 0, 1), {0, 0, -1}, counts), color / 1.5 * (0.1 + 0.6));
-    CHECK(counts.shadow == 1);
+    CHECK(counts.shadow == 0);  // a lone floor is convex: facing the light, it is lit for certain
+  CHECK(counts.skipped[int(rt::SkipRule::convex_facing)] == 1);
   }
   SECTION("light off to the side at d = 5 (a 3-4-5 triangle)") {
     // l = (0.6, 0, 0.8): n.l = 0.8. Seen from above, h ~ (0.6, 0, 1.8), n.h = 3 / sqrt10,
@@ -228,7 +239,7 @@ TEST_CASE("a shadowed light contributes nothing, not even ambient", "[shade]") {
     rt::RayCounts counts;
     check_color(f.shade(eye, towards, counts),
                 emission + l_point * (ca + cd) + l_up * (ca + cd) + l_side * (ca + cd * k));
-    CHECK(counts.shadow == 3);
+    CHECK(counts.skipped[int(rt::SkipRule::convex_facing)] == 3);  // the floor alone is convex
   }
   SECTION("an occluder beyond a point light does not shadow it") {
     scene.lights = {point(Vec3d(kPoint) + Vec3d(0, 0, 0.5), l_point, {1, 0, 0})};

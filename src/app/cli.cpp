@@ -21,6 +21,7 @@
 #include "rt/io/image_io.h"
 #include "rt/io/load_scene.h"
 #include "rt/render/render.h"
+#include "ray_budget.h"
 
 namespace rt {
 
@@ -44,6 +45,8 @@ struct RenderArgs {
   std::string ray_offset = "robust";
   int threads = 0;
   std::string stats_path;
+  bool explain = false;
+  EffectsOptions effects;
   bool quiet = false;
   GltfOptions gltf;
   SceneOptions scene;
@@ -116,6 +119,8 @@ int run_render(const RenderArgs& args) {
   RenderOptions options;
   options.threads = threads;
   options.ray_offset = ray_offset;
+  options.effects = args.effects;
+  options.time_queries = args.explain || !args.stats_path.empty();
   options.on_progress = [&](double fraction) { progress.update(fraction); };
   const RenderResult result = render_image(scene, flat, *accel, options);
   progress.finish();
@@ -148,11 +153,14 @@ int run_render(const RenderArgs& args) {
                      {"shadow", result.rays.shadow},
                      {"reflection", result.rays.reflection},
                      {"total", result.rays.total()}};
+    stats["effects"] = effects_json(result.plan, scene);
+    stats["ray_budget"] = ray_budget_json(result, scene);
     stats["mrays_per_s"] = mrays;
     stats["time_s"] = {{"load", load_s},     {"flatten", flatten_s}, {"build", build_s},
                        {"render", result.seconds}, {"write", write_s},   {"total", total_s}};
     write_text_file_atomically(args.stats_path, stats.dump(2) + "\n");
   }
+  if (args.explain) fmt::print("{}", explain_render(result, scene));
   if (!args.quiet)
     fmt::print(
         "{}: {}x{}, {} triangles, {} spheres, {} lights, {:.3f} s render, {:.3f} s total, {:.2f} Mrays/s ({}, {} "
@@ -162,7 +170,8 @@ int run_render(const RenderArgs& args) {
   return 0;
 }
 
-int run_info(const std::string& scene_path, const GltfOptions& gltf, const SceneOptions& scene_options) {
+int run_info(const std::string& scene_path, const GltfOptions& gltf, const SceneOptions& scene_options,
+             const EffectsOptions& effects) {
   LoadReport report;
   Scene scene = load_scene_or_default(scene_path, gltf, &report);
   apply_scene_options(scene_options, report, scene);
@@ -212,6 +221,9 @@ int run_info(const std::string& scene_path, const GltfOptions& gltf, const Scene
                                            l.spot_direction.y, l.spot_direction.z, l.spot_cos_inner, l.spot_cos_outer)
                              : "");
   }
+  fmt::print("effects     (default ray offsets; see rt render --explain for the ray budget)\n");
+  for (const std::string& line : describe_plan(plan_effects(scene, flat, RayOffset{}, effects), scene))
+    fmt::print("  {}\n", line);
   return 0;
 }
 
@@ -272,7 +284,24 @@ int run_cli(int argc, char** argv) {
   render->add_option("--threads", render_args.threads, "Worker threads (0 = all cores)")
       ->check(CLI::Range(0, 1024))
       ->capture_default_str();
-  render->add_option("--stats", render_args.stats_path, "Write ray counts and phase timings as JSON to this file");
+  render->add_option("--stats", render_args.stats_path,
+                     "Write ray counts, the effects plan, the ray budget and phase timings as JSON to this file");
+  render->add_flag("--explain", render_args.explain,
+                   "Print the effects plan and the ray budget (rays, hits, time per effect, skipped rays) at the end");
+  const auto add_effects_options = [](CLI::App* command, EffectsOptions& effects) {
+    command->add_flag("--no-prune", [&effects](std::int64_t) { effects.prune = false; },
+                      "Trace every shadow and reflection ray, even those the exact rules prove useless "
+                      "(same image, more rays)");
+    command->add_option("--min-throughput", effects.min_throughput,
+                        "Approximation, off by default: no reflection ray once the path's weight is below this "
+                        "(e.g. 0.002 = half an 8-bit step); error <= value x the scene's radiance bound")
+        ->check(CLI::Range(0.0, 1.0));
+    command->add_option("--min-light", effects.min_light_contribution,
+                        "Approximation, off by default: drop a light at a hit when its term is below this "
+                        "(linear RGB); error <= value x lights x path weight bound")
+        ->check(CLI::Range(0.0, 1.0));
+  };
+  add_effects_options(render, render_args.effects);
   render->add_flag("-q,--quiet", render_args.quiet, "No progress bar, summary line, warnings or notes");
   add_scene_options(*render, render_args.scene);
 
@@ -283,6 +312,8 @@ int run_cli(int argc, char** argv) {
   add_gltf_options(info, info_gltf);
   SceneOptions info_scene;
   add_scene_options(*info, info_scene);
+  EffectsOptions info_effects;
+  add_effects_options(info, info_effects);
 
   try {
     app.parse(argc, argv);
@@ -293,7 +324,7 @@ int run_cli(int argc, char** argv) {
 
   try {
     if (*render) return run_render(render_args);
-    if (*info) return run_info(info_path, info_gltf, info_scene);
+    if (*info) return run_info(info_path, info_gltf, info_scene, info_effects);
   } catch (const UsageError& error) {
     fmt::print(stderr, "rt: error: {}\n", error.what());
     return 2;

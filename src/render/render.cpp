@@ -1,7 +1,6 @@
 #include "rt/render/render.h"
 
-#include <xmmintrin.h>
-#include <pmmintrin.h>
+#include <x86intrin.h>
 
 #include <atomic>
 #include <chrono>
@@ -42,12 +41,13 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   const int width = scene.settings.width, height = scene.settings.height;
   const CameraFrame frame = make_camera_frame(scene.camera, width, height, scene.source);
   const TextureSampler textures(scene);
-  const ShadingContext context{scene, flat, accel, options.ray_offset, &textures};
+  RenderResult result;
+  result.plan = plan_effects(scene, flat, options.ray_offset, options.effects);
+  const ShadingContext context{scene, flat, accel, result.plan, options.ray_offset, &textures, options.time_queries};
   const int tile = std::max(1, options.tile_size);
   const int tiles_x = (width + tile - 1) / tile, tiles_y = (height + tile - 1) / tile;
   const int tile_count = tiles_x * tiles_y;
 
-  RenderResult result;
   result.image = Image(width, height);
   tbb::enumerable_thread_specific<RayCounts> thread_counts;
   std::atomic<int> tiles_done{0};
@@ -57,6 +57,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
     ScopedFlushDenormals flush;
     RayCounts& counts = thread_counts.local();
     for (int t = range.begin(); t != range.end(); ++t) {
+      const std::uint64_t tile_start = options.time_queries ? __rdtsc() : 0;
       const int x0 = (t % tiles_x) * tile, y0 = (t / tiles_x) * tile;
       const int x1 = std::min(x0 + tile, width), y1 = std::min(y0 + tile, height);
       for (int y = y0; y < y1; ++y)
@@ -64,6 +65,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
           ++counts.camera;
           result.image.at(x, y) = find_color(context, ray_through_pixel(frame, x, y), 0, counts);
         }
+      if (options.time_queries) counts.loop_ticks += __rdtsc() - tile_start;
       const int done = ++tiles_done;
       if (options.on_progress) {
         std::lock_guard lock(progress_mutex);

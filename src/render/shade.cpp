@@ -2,20 +2,57 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <optional>
 
+#include <x86intrin.h>
+
 namespace rt {
+
+namespace {
+
+// counts[index] += amount, growing the vector as needed.
+void add_at(std::vector<std::uint64_t>& counts, std::size_t index, std::uint64_t amount = 1) {
+  if (counts.size() <= index) counts.resize(index + 1, 0);
+  counts[index] += amount;
+}
+
+void add_all(std::vector<std::uint64_t>& into, const std::vector<std::uint64_t>& from) {
+  for (std::size_t i = 0; i < from.size(); ++i) add_at(into, i, from[i]);
+}
+
+double max_channel(const Vec3d& c) { return std::max({c.r, c.g, c.b}); }
+
+// Margin on n.l (cosine, dimensionless) before the convex rule trusts that a shadow ray leaves
+// the surface's front half-space: far above the ~1e-15 rounding of the double dot product and of
+// the float32 direction the ray really carries, so only rays within 1e-6 rad of grazing are traced.
+constexpr double kConvexFacingMargin = 1e-6;
+
+}  // namespace
+
+std::uint64_t RayCounts::skipped_total() const { return std::accumulate(skipped.begin(), skipped.end(), std::uint64_t{0}); }
 
 RayCounts& RayCounts::operator+=(const RayCounts& other) {
   camera += other.camera;
   shadow += other.shadow;
   reflection += other.reflection;
+  add_all(shadow_per_light, other.shadow_per_light);
+  add_all(reflection_per_depth, other.reflection_per_depth);
+  add_all(hits_per_depth, other.hits_per_depth);
+  for (int r = 0; r < kSkipRuleCount; ++r) skipped[r] += other.skipped[r];
+  add_all(intersect_ticks_per_depth, other.intersect_ticks_per_depth);
+  add_all(shadow_ticks_per_light, other.shadow_ticks_per_light);
+  loop_ticks += other.loop_ticks;
   return *this;
 }
 
-Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCounts& counts) {
+Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCounts& counts,
+                 const Vec3d& throughput) {
+  const std::uint64_t intersect_start = context.time_queries ? __rdtsc() : 0;
   const Hit hit = context.accel.intersect(ray);
+  if (context.time_queries) add_at(counts.intersect_ticks_per_depth, std::size_t(depth), __rdtsc() - intersect_start);
   if (!hit.found()) return context.scene.settings.background;
+  add_at(counts.hits_per_depth, std::size_t(depth));
 
   // Surface at the hit, world space, double. The point is interpolated from the triangle's
   // vertices (or projected onto the sphere) rather than taken as o + t d: it then lies on the
@@ -52,55 +89,101 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
   const Vec3d specular(material.specular);
   const Vec3d reflective(material.reflective.value_or(material.specular));
 
+  const EffectsPlan& plan = context.plan;
+  const MaterialPlan& terms = plan.materials[material_id];
+  const bool prune = plan.options.prune;
+  const auto skip = [&counts](SkipRule rule) { ++counts.skipped[static_cast<int>(rule)]; };
+
   Vec3d radiance(material.emission);
-  for (const Light& light : context.scene.lights) {
+  for (std::size_t j = 0; j < context.scene.lights.size(); ++j) {
+    const Light& light = context.scene.lights[j];
+    const LightPlan& light_plan = plan.lights[j];
+    if (!light_plan.contributes) {
+      skip(SkipRule::light_off);
+      continue;
+    }
     Vec3d to_light;
-    Vec3d intensity(light.color);
+    Vec3d intensity = light_plan.color;
     if (light.is_directional()) {
-      to_light = glm::normalize(Vec3d(light.position));
+      to_light = light_plan.to_light;
     } else {
       const Vec3d offset = Vec3d(light.position) - point;
       const double d = glm::length(offset);
-      if (!(d > 0.0)) continue;  // a light exactly at the point has no direction
+      if (!(d > 0.0)) {  // a light exactly at the point has no direction
+        skip(SkipRule::light_on_surface);
+        continue;
+      }
       to_light = offset / d;
       intensity /= light.attenuation.x + light.attenuation.y * d + light.attenuation.z * d * d;
       if (light.is_spot()) {
         const double cone = std::clamp((glm::dot(light.spot_direction, -to_light) - light.spot_cos_outer) /
                                            std::max(light.spot_cos_inner - light.spot_cos_outer, 1e-3),
                                        0.0, 1.0);
-        if (cone == 0.0) continue;
         intensity *= cone * cone;
       }
     }
-    Ray shadow_ray;
-    shadow_ray.origin = offset_ray_origin(context.ray_offset, surface, to_light);
-    const double light_distance = light.is_directional()
-                                      ? double(kInfinity)
-                                      : shadow_ray_tfar(context.ray_offset, Vec3d(shadow_ray.origin), Vec3d(light.position));
-    // A point light closer to the surface than the margin cannot be occluded; no ray is needed.
-    if (light_distance > 0.0) {
-      shadow_ray.direction = Vec3f(to_light);
-      shadow_ray.tfar = static_cast<float>(light_distance);
-      ++counts.shadow;
-      if (context.accel.occluded(shadow_ray)) continue;
-    }
 
-    // l + v vanishes when the light is exactly behind the surface point as seen from the eye;
-    // the half vector is then undefined and the highlight is taken as zero (n.h = 0), not NaN.
+    // The unshadowed term. l + v vanishes when the light is exactly behind the surface point as
+    // seen from the eye; the half vector is then undefined and the highlight is taken as zero
+    // (n.h = 0), not NaN.
     const Vec3d half_sum = to_light + to_eye;
     const double half_length = glm::length(half_sum);
     const double n_dot_l = std::max(glm::dot(normal, to_light), 0.0);
     const double n_dot_h = half_length > 0.0 ? std::max(glm::dot(normal, half_sum) / half_length, 0.0) : 0.0;
-    radiance += intensity * (ambient + diffuse * n_dot_l + specular * std::pow(n_dot_h, double(material.shininess)));
+    // A black specular colour makes the highlight exactly zero (pow of [0, 1] is finite).
+    const Vec3d highlight = terms.specular || !prune ? specular * std::pow(n_dot_h, double(material.shininess)) : Vec3d(0.0);
+    const Vec3d term = intensity * (ambient + diffuse * n_dot_l + highlight);
+
+    // Exact rules first, then the opt-in approximation; the first rule that applies is counted.
+    if (prune && term == Vec3d(0.0)) {
+      skip(SkipRule::zero_contribution);
+      continue;
+    }
+    if (plan.options.min_light_contribution > 0.0 && max_channel(term) < plan.options.min_light_contribution) {
+      skip(SkipRule::dim_light);
+      continue;
+    }
+    bool visible = true;
+    if (plan.geometric_rules && depth == 0 && light_plan.at_eye) {
+      skip(SkipRule::light_at_eye);  // the camera ray itself found nothing between the eye and the hit
+    } else if (plan.convex && glm::dot(surface.geometric_normal, to_light) > kConvexFacingMargin) {
+      skip(SkipRule::convex_facing);  // the ray stays in the open half-space in front of the surface
+    } else {
+      Ray shadow_ray;
+      shadow_ray.origin = offset_ray_origin(context.ray_offset, surface, to_light);
+      const double light_distance = light.is_directional() ? double(kInfinity)
+                                                           : shadow_ray_tfar(context.ray_offset, Vec3d(shadow_ray.origin),
+                                                                             Vec3d(light.position));
+      if (light_distance > 0.0) {
+        shadow_ray.direction = Vec3f(to_light);
+        shadow_ray.tfar = static_cast<float>(light_distance);
+        ++counts.shadow;
+        add_at(counts.shadow_per_light, j);
+        const std::uint64_t start = context.time_queries ? __rdtsc() : 0;
+        visible = !context.accel.occluded(shadow_ray);
+        if (context.time_queries) add_at(counts.shadow_ticks_per_light, j, __rdtsc() - start);
+      } else {
+        skip(SkipRule::light_on_surface);  // closer than the margin: nothing can be in between
+      }
+    }
+    if (visible) radiance += term;
   }
 
-  if (depth < context.scene.settings.max_depth && (!material.reflective || reflective != Vec3d(0.0))) {
-    const Vec3d reflected = direction - 2.0 * glm::dot(direction, normal) * normal;
-    Ray reflection_ray;
-    reflection_ray.origin = offset_ray_origin(context.ray_offset, surface, reflected);
-    reflection_ray.direction = Vec3f(reflected);
-    ++counts.reflection;
-    radiance += reflective * Vec3d(find_color(context, reflection_ray, depth + 1, counts));
+  if (depth < context.scene.settings.max_depth) {
+    const Vec3d next_throughput = throughput * reflective;
+    if (prune && !terms.reflection) {
+      skip(SkipRule::black_reflection);
+    } else if (plan.options.min_throughput > 0.0 && max_channel(next_throughput) < plan.options.min_throughput) {
+      skip(SkipRule::low_throughput);
+    } else {
+      const Vec3d reflected = direction - 2.0 * glm::dot(direction, normal) * normal;
+      Ray reflection_ray;
+      reflection_ray.origin = offset_ray_origin(context.ray_offset, surface, reflected);
+      reflection_ray.direction = Vec3f(reflected);
+      ++counts.reflection;
+      add_at(counts.reflection_per_depth, std::size_t(depth) + 1);
+      radiance += reflective * Vec3d(find_color(context, reflection_ray, depth + 1, counts, next_throughput));
+    }
   }
   return Color(radiance);
 }

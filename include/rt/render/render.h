@@ -13,12 +13,15 @@ struct RenderOptions {
   int threads = 0;     // worker threads; 0 = all hardware threads
   int tile_size = 16;  // square tiles, in pixels
   RayOffset ray_offset{};
+  EffectsOptions effects{};  // what may be skipped (exact pruning by default)
+  bool time_queries = false; // measure time per ray kind into RenderResult::rays (slows queries slightly)
   // Called from worker threads (serialised) with the fraction of tiles done, in [0, 1].
   std::function<void(double)> on_progress;
 };
 
 struct RenderResult {
   Image image;
+  EffectsPlan plan;  // what the render skipped, decided by plan_effects before the first ray
   RayCounts rays;
   double seconds = 0.0;  // wall-clock time of the render loop
 };

@@ -2,23 +2,38 @@
 // FindColor: the seed's Phong / Blinn-Phong shading with shadow rays and recursive mirror
 // reflection, on top of either Accel backend.
 
+#include <array>
 #include <cstdint>
+#include <vector>
 
 #include "rt/accel/accel.h"
 #include "rt/flatten/flatten.h"
+#include "rt/render/effects.h"
 #include "rt/render/ray_offset.h"
 #include "rt/render/texture.h"
 #include "rt/scene/scene.h"
 
 namespace rt {
 
-// Rays traced, per kind. Each render thread owns one; they are summed afterwards.
+// The ray budget: rays traced per kind, hits, rays skipped per rule and, when timing is on, the
+// time spent in intersection queries. Each render thread owns one; they are summed afterwards.
+// Per-depth and per-light vectors grow on demand (depth d: 0 = camera rays, d >= 1 = reflections).
 struct RayCounts {
   std::uint64_t camera = 0;
   std::uint64_t shadow = 0;
   std::uint64_t reflection = 0;
+  std::vector<std::uint64_t> shadow_per_light;      // [j]: shadow rays traced towards light j
+  std::vector<std::uint64_t> reflection_per_depth;  // [d]: reflection rays of depth d (index 0 unused)
+  std::vector<std::uint64_t> hits_per_depth;        // [d]: rays of depth d that hit a surface
+  std::array<std::uint64_t, kSkipRuleCount> skipped{};  // [SkipRule]: rays not traced, per rule
+  // Timestamp-counter ticks (ShadingContext::time_queries only): closest-hit queries per ray depth,
+  // shadow queries per light, and the whole render loop of the thread (set by render_image).
+  std::vector<std::uint64_t> intersect_ticks_per_depth;
+  std::vector<std::uint64_t> shadow_ticks_per_light;
+  std::uint64_t loop_ticks = 0;
 
   std::uint64_t total() const { return camera + shadow + reflection; }
+  std::uint64_t skipped_total() const;
   RayCounts& operator+=(const RayCounts& other);
 };
 
@@ -28,8 +43,10 @@ struct ShadingContext {
   const Scene& scene;      // materials, lights, settings (max_depth, background)
   const FlatScene& flat;   // world-space geometry the accel was built on
   const Accel& accel;
-  RayOffset ray_offset{};  // self-intersection policy of shadow and reflection rays
+  const EffectsPlan& plan;  // what to skip; must come from plan_effects for this scene and ray_offset
+  RayOffset ray_offset{};   // self-intersection policy of shadow and reflection rays
   const TextureSampler* textures = nullptr;  // diffuse textures; nullptr: materials' textures are ignored
+  bool time_queries = false;  // fill RayCounts' tick counters (costs two timestamp reads per query)
 };
 
 // The seed's FindColor for a ray whose origin and direction are world space:
@@ -42,7 +59,11 @@ struct ShadingContext {
 // C_diffuse and C_ambient are multiplied by the material's diffuse texture at the hit; the
 // reflection is weighted by Material::reflective when set instead of C_specular. depth 0 is the primary hit; the
 // reflection recurses while depth < max_depth. A miss returns settings.background.
+// Rays the plan's rules skip are not traced (counted in RayCounts::skipped); the exact rules leave
+// the result bit-identical. `throughput` (linear RGB) is the product of the reflection weights
+// that lead to this ray, read only by the min_throughput approximation.
 // Computed in double, returned as float32 linear RGB.
-Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCounts& counts);
+Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCounts& counts,
+                 const Vec3d& throughput = Vec3d(1.0));
 
 }  // namespace rt

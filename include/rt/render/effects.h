@@ -1,0 +1,103 @@
+#pragma once
+// The effects plan: which parts of FindColor a scene can need (lights, shadow rays, reflection
+// rays, shading terms), decided once after flattening, and the per-hit rules that skip rays whose
+// result cannot change the image. Exact rules are on by default; approximations are opt-in.
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "rt/flatten/flatten.h"
+#include "rt/render/ray_offset.h"
+#include "rt/scene/scene.h"
+
+namespace rt {
+
+// What the renderer may skip. The exact rules never change the image (tests render every scene
+// both ways and compare bytes); the two thresholds trade a documented error for rays.
+struct EffectsOptions {
+  bool prune = true;  // false: every shadow and reflection ray is traced (--no-prune)
+  // Approximation: no reflection ray where the path's throughput (product of the reflective
+  // colours so far, largest channel, times the reflective colour at this hit) is below this.
+  // Error per pixel <= min_throughput * EffectsPlan::radiance_bound. 0 = off.
+  double min_throughput = 0.0;
+  // Approximation: a light whose unshadowed contribution at a hit (largest channel) is below this
+  // is dropped there, without a shadow ray. Error per pixel <= min_light_contribution * lights *
+  // EffectsPlan::path_weight_bound. 0 = off.
+  double min_light_contribution = 0.0;
+};
+
+// Why a shadow or reflection ray was not traced, one counter per rule (RayCounts::skipped).
+enum class SkipRule : int {
+  light_off,          // exact: the light contributes nothing anywhere (black, zero-width cone)
+  zero_contribution,  // exact: its unshadowed term is exactly zero at this hit (e.g. n.l <= 0, no ambient/specular)
+  light_at_eye,       // exact: primary hit and the light is at the camera eye, which sees the hit
+  convex_facing,      // exact: the scene is one convex object and the surface faces the light
+  light_on_surface,   // always: the light is closer than the offset margin (nothing in between)
+  black_reflection,   // exact: the reflection weight is black
+  dim_light,          // approximation: the light's term is below min_light_contribution
+  low_throughput,     // approximation: the path's throughput is below min_throughput
+};
+inline constexpr int kSkipRuleCount = 8;
+std::string to_string(SkipRule rule);
+
+// One light as the shader uses it: constants hoisted out of the per-hit loop (world space, double).
+struct LightPlan {
+  bool contributes = true;  // false: no term and no shadow ray anywhere
+  bool at_eye = false;      // point light exactly at the camera eye
+  std::string why;          // one phrase: why it is on/off, which shadow rules apply
+  Vec3d color{0.0};         // linear RGB
+  Vec3d to_light{0.0};      // directional lights: unit direction towards the light
+};
+
+// Which terms of FindColor a material can produce (a term whose colour is black is zero).
+struct MaterialPlan {
+  bool ambient = false;
+  bool diffuse = false;
+  bool specular = false;
+  bool reflection = false;  // its reflection weight (Material::reflective, else specular) is not black
+};
+
+// The plan for one scene and one set of options; built by plan_effects, read by find_color.
+struct EffectsPlan {
+  EffectsOptions options;
+  std::vector<LightPlan> lights;        // parallel to Scene::lights
+  std::vector<MaterialPlan> materials;  // parallel to Scene::materials
+  bool shadows = false;                 // some shadow ray can be traced
+  // The light-at-eye and convex rules are in force (pruning on and robust ray offsets).
+  bool geometric_rules = false;
+  // The whole scene is one convex object with outward normals, so a surface point whose geometric
+  // normal faces the light cannot be shadowed (needs robust ray offsets, see plan_effects).
+  bool convex = false;
+  std::string convex_why;
+  bool reflections = false;             // some reflection ray can be traced
+  // Deepest ray that can matter: the scene's max_depth when some material reflects, else 0 (primary
+  // hits only).
+  int useful_depth = 0;
+  // Upper bounds used by the approximations' error bounds (linear RGB, +inf when unbounded, e.g. a
+  // point light without constant attenuation): the largest radiance find_color can return, and the
+  // largest sum over a path of the products of reflection weights (1 + r + r^2 + ... to the depth).
+  double radiance_bound = 0.0;
+  double path_weight_bound = 0.0;
+
+  // Largest error per pixel and channel (linear RGB) the enabled approximations can introduce; 0 when off.
+  double approximation_error_bound() const;
+};
+
+// Decides the plan after loading and flattening. `ray_offset` matters because the geometric rules
+// (light at the eye, convex scene) argue about the exact segment a shadow ray covers, which holds
+// for the traced ray only when its origin cannot fall behind the surface: they are used with
+// robust offsets only.
+EffectsPlan plan_effects(const Scene& scene, const FlatScene& flat, const RayOffset& ray_offset,
+                         const EffectsOptions& options);
+
+// The plan as short human-readable lines (rt info, --explain).
+std::vector<std::string> describe_plan(const EffectsPlan& plan, const Scene& scene);
+
+// True when every vertex of the triangles lies on or behind every triangle's plane (geometric
+// normal (p1 - p0) x (p2 - p0)) for certain: each orientation test is decided by a double-precision
+// determinant and Shewchuk's error bound, and an undecided one counts as not convex. Empty: false.
+bool is_convex_for_certain(const FlatScene& flat);
+
+}  // namespace rt

@@ -1,0 +1,139 @@
+#include "ray_budget.h"
+
+#include <optional>
+
+#include <fmt/format.h>
+
+namespace rt {
+
+namespace {
+
+std::uint64_t at(const std::vector<std::uint64_t>& values, std::size_t index) {
+  return index < values.size() ? values[index] : 0;
+}
+
+// Ticks of the whole render loop summed over threads; 0 when the render was not timed.
+double all_ticks(const RayCounts& rays) { return static_cast<double>(rays.loop_ticks); }
+
+// One budget line: rays traced, hits (when meaningful) and, when timed, share of the loop's ticks
+// and the same share of the render's wall-clock seconds.
+struct BudgetRow {
+  std::string kind;
+  std::uint64_t rays = 0;
+  std::optional<std::uint64_t> hits;
+  double ticks = 0.0;
+};
+
+std::vector<BudgetRow> budget_rows(const RenderResult& result, const Scene& scene) {
+  const RayCounts& rays = result.rays;
+  std::vector<BudgetRow> rows;
+  rows.push_back({"camera", rays.camera, at(rays.hits_per_depth, 0), double(at(rays.intersect_ticks_per_depth, 0))});
+  for (std::size_t j = 0; j < scene.lights.size(); ++j)
+    rows.push_back({fmt::format("shadow light {}", j), at(rays.shadow_per_light, j), std::nullopt,
+                    double(at(rays.shadow_ticks_per_light, j))});
+  for (std::size_t d = 1; d < std::max(rays.reflection_per_depth.size(), std::size_t(1)); ++d)
+    rows.push_back({fmt::format("reflection depth {}", d), at(rays.reflection_per_depth, d), at(rays.hits_per_depth, d),
+                    double(at(rays.intersect_ticks_per_depth, d))});
+  return rows;
+}
+
+double share(double ticks, const RayCounts& rays) { return all_ticks(rays) > 0.0 ? ticks / all_ticks(rays) : 0.0; }
+
+}  // namespace
+
+nlohmann::ordered_json effects_json(const EffectsPlan& plan, const Scene& scene) {
+  nlohmann::ordered_json json;
+  json["prune"] = plan.options.prune;
+  nlohmann::ordered_json lights = nlohmann::ordered_json::array();
+  for (std::size_t j = 0; j < plan.lights.size(); ++j)
+    lights.push_back({{"light", j},
+                      {"kind", scene.lights[j].is_directional() ? "directional"
+                               : scene.lights[j].is_spot()     ? "spot"
+                                                               : "point"},
+                      {"contributes", plan.lights[j].contributes},
+                      {"at_eye", plan.lights[j].at_eye},
+                      {"why", plan.lights[j].why}});
+  json["lights"] = lights;
+  json["shadows"] = plan.shadows;
+  json["convex"] = {{"on", plan.convex}, {"why", plan.convex_why}};
+  std::size_t reflective = 0, specular = 0;
+  for (const MaterialPlan& m : plan.materials) {
+    reflective += m.reflection;
+    specular += m.specular;
+  }
+  json["reflections"] = plan.reflections;
+  json["useful_depth"] = plan.useful_depth;
+  json["materials"] = {{"total", plan.materials.size()}, {"reflective", reflective}, {"specular", specular}};
+  json["approximations"] = {{"min_throughput", plan.options.min_throughput},
+                            {"min_light_contribution", plan.options.min_light_contribution},
+                            {"error_bound", plan.approximation_error_bound()}};
+  return json;
+}
+
+nlohmann::ordered_json ray_budget_json(const RenderResult& result, const Scene& scene) {
+  const RayCounts& rays = result.rays;
+  const bool timed = rays.loop_ticks > 0;
+  const auto row_json = [&](const BudgetRow& row) {
+    nlohmann::ordered_json json = {{"rays", row.rays}};
+    if (row.hits) json["hits"] = *row.hits;
+    if (timed) {
+      json["time_s"] = share(row.ticks, rays) * result.seconds;
+      json["share"] = share(row.ticks, rays);
+    }
+    return json;
+  };
+  const std::vector<BudgetRow> rows = budget_rows(result, scene);
+  nlohmann::ordered_json json;
+  json["camera"] = row_json(rows[0]);
+  nlohmann::ordered_json shadow = nlohmann::ordered_json::array(), reflection = nlohmann::ordered_json::array();
+  double query_ticks = rows[0].ticks;
+  for (std::size_t j = 0; j < scene.lights.size(); ++j) {
+    nlohmann::ordered_json entry = {{"light", j}};
+    entry.update(row_json(rows[1 + j]));
+    shadow.push_back(entry);
+    query_ticks += rows[1 + j].ticks;
+  }
+  for (std::size_t r = 1 + scene.lights.size(); r < rows.size(); ++r) {
+    nlohmann::ordered_json entry = {{"depth", r - scene.lights.size()}};
+    entry.update(row_json(rows[r]));
+    reflection.push_back(entry);
+    query_ticks += rows[r].ticks;
+  }
+  json["shadow"] = shadow;
+  json["reflection"] = reflection;
+  if (timed) {
+    const double rest = std::max(0.0, all_ticks(rays) - query_ticks);
+    json["shading"] = {{"time_s", share(rest, rays) * result.seconds}, {"share", share(rest, rays)}};
+  }
+  nlohmann::ordered_json skipped;
+  for (int r = 0; r < kSkipRuleCount; ++r) skipped[to_string(static_cast<SkipRule>(r))] = rays.skipped[r];
+  json["skipped"] = skipped;
+  json["traced"] = rays.total();
+  return json;
+}
+
+std::string explain_render(const RenderResult& result, const Scene& scene) {
+  const RayCounts& rays = result.rays;
+  std::string text = "effects plan\n";
+  for (const std::string& line : describe_plan(result.plan, scene)) text += "  " + line + "\n";
+  text += fmt::format("ray budget ({:.3f} s render)\n", result.seconds);
+  text += fmt::format("  {:<20} {:>14} {:>14} {:>9} {:>7}\n", "kind", "rays", "hits", "time s", "share");
+  double query_ticks = 0.0;
+  for (const BudgetRow& row : budget_rows(result, scene)) {
+    query_ticks += row.ticks;
+    text += fmt::format("  {:<20} {:>14} {:>14} {:>9.3f} {:>6.1f}%\n", row.kind, row.rays,
+                        row.hits ? fmt::to_string(*row.hits) : "-", share(row.ticks, rays) * result.seconds,
+                        100.0 * share(row.ticks, rays));
+  }
+  const double rest = std::max(0.0, all_ticks(rays) - query_ticks);
+  text += fmt::format("  {:<20} {:>14} {:>14} {:>9.3f} {:>6.1f}%\n", "shading, camera setup", "-", "-",
+                      share(rest, rays) * result.seconds, 100.0 * share(rest, rays));
+  text += fmt::format("  {:<20} {:>14}\n", "traced", rays.total());
+  for (int r = 0; r < kSkipRuleCount; ++r)
+    if (rays.skipped[r] > 0)
+      text += fmt::format("  skipped {:<18} {:>8}\n", to_string(static_cast<SkipRule>(r)), rays.skipped[r]);
+  if (rays.skipped_total() == 0) text += "  skipped              0\n";
+  return text;
+}
+
+}  // namespace rt
