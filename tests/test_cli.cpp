@@ -93,9 +93,55 @@ TEST_CASE("rt render --stats writes the documented JSON", "[cli]") {
   CHECK(stats.at("time_s").at("total").get<double>() >= stats.at("time_s").at("render").get<double>());
   CHECK(stats.at("time_s").at("total").get<double>() >= sum - 1e-6);  // phases are disjoint parts of it
 
+  // The effects plan and the ray budget: per-light shadow rays and per-depth reflections add up to
+  // the totals, shares of render time to about 1, skipped rays are listed per rule.
+  const nlohmann::json& effects = stats.at("effects");
+  CHECK(effects.at("prune") == true);
+  CHECK(effects.at("lights").size() == scene.lights.size());
+  CHECK(effects.at("useful_depth") == scene.settings.max_depth);
+  const nlohmann::json& budget = stats.at("ray_budget");
+  CHECK(budget.at("camera").at("rays") == 80 * 60);
+  std::uint64_t shadow = 0, reflection = 0;
+  double shares = budget.at("camera").at("share").get<double>() + budget.at("shading").at("share").get<double>();
+  for (const auto& light : budget.at("shadow")) {
+    shadow += light.at("rays").get<std::uint64_t>();
+    shares += light.at("share").get<double>();
+  }
+  for (const auto& depth : budget.at("reflection")) {
+    reflection += depth.at("rays").get<std::uint64_t>();
+    shares += depth.at("share").get<double>();
+  }
+  CHECK(shadow == rays.at("shadow").get<std::uint64_t>());
+  CHECK(reflection == rays.at("reflection").get<std::uint64_t>());
+  CHECK(shares == Approx(1.0).margin(1e-9));
+  CHECK(budget.at("skipped").at("black_reflection").get<std::uint64_t>() > 0);
+  CHECK(budget.at("traced") == rays.at("total"));
+
   const rt::Image image = rt::read_image(dir / "small.png");
   CHECK(image.width == 80);
   CHECK(image.height == 60);
+}
+
+TEST_CASE("rt render --explain prints the plan and the budget; --no-prune traces more, same image", "[cli]") {
+  rt_test::TempDir dir;
+  const Run pruned = run_rt(dir, "render --quiet --explain --width 80 --height 60 -o pruned.png --stats pruned.json");
+  INFO("stderr: " << pruned.err);
+  REQUIRE(pruned.status == 0);
+  for (const char* text : {"effects plan", "light 0", "reflections on", "ray budget", "camera", "shadow light 1",
+                           "reflection depth 1", "skipped black_reflection"})
+    CHECK_THAT(pruned.out, Catch::Contains(text));
+  const Run full = run_rt(dir, "render --quiet --no-prune --width 80 --height 60 -o full.png --stats full.json");
+  REQUIRE(full.status == 0);
+  CHECK(read_file(dir.path() / "pruned.png") == read_file(dir.path() / "full.png"));
+  const auto traced = [&](const char* name) {
+    return nlohmann::json::parse(read_file(dir.path() / name)).at("rays").at("total").get<std::uint64_t>();
+  };
+  CHECK(traced("pruned.json") < traced("full.json"));
+
+  const Run bad = run_rt(dir, "render --quiet --min-throughput 2 -o never.png");
+  CHECK(bad.status == 2);
+  CHECK_THAT(bad.err, Catch::Contains("--min-throughput"));
+  CHECK_FALSE(fs::exists(dir.path() / "never.png"));
 }
 
 TEST_CASE("rt info describes a scene", "[cli]") {
@@ -107,6 +153,7 @@ TEST_CASE("rt info describes a scene", "[cli]") {
   const Run file = run_rt(dir, "info " + quoted(std::string(RT_SOURCE_DIR) + "/scenes/default.json"));
   CHECK(file.status == 0);
   CHECK_THAT(file.out, Catch::Contains("default.json"));
+  CHECK_THAT(file.out, Catch::Contains("effects") && Catch::Contains("reflections on"));
   CHECK(dir.entries().empty());
 }
 

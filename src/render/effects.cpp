@@ -113,8 +113,7 @@ EffectsPlan plan_effects(const Scene& scene, const FlatScene& flat, const RayOff
 
   // The geometric rules argue about exact segments; see the contract in effects.h.
   const bool robust_offsets = ray_offset.mode == RayOffset::Mode::robust;
-  plan.geometric_rules = options.prune && robust_offsets;
-  plan.convex = plan.geometric_rules && geometry &&
+  plan.convex = options.prune && robust_offsets && geometry &&
                 ((flat.triangles.empty() && flat.spheres.size() == 1) || is_convex_for_certain(flat));
   if (!options.prune)
     plan.convex_why = "not used (--no-prune)";
@@ -147,7 +146,7 @@ EffectsPlan plan_effects(const Scene& scene, const FlatScene& flat, const RayOff
       std::vector<std::string> rules;
       if (options.prune) {
         rules.push_back("none where its term is zero");
-        if (lp.at_eye && plan.geometric_rules) rules.push_back("none at primary hits (it sits at the eye)");
+        if (lp.at_eye) rules.push_back("none at primary hits (it sits at the eye)");
         if (plan.convex) rules.push_back("none where the surface faces it");
       }
       lp.why = rules.empty() ? "on: shadow ray at every hit" : "on: shadow rays at hits, " + fmt::format("{}", fmt::join(rules, "; "));

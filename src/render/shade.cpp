@@ -28,6 +28,11 @@ double max_channel(const Vec3d& c) { return std::max({c.r, c.g, c.b}); }
 // the float32 direction the ray really carries, so only rays within 1e-6 rad of grazing are traced.
 constexpr double kConvexFacingMargin = 1e-6;
 
+// Relative shortening (of t, float32) of a shadow ray that retraces a camera ray towards a light at
+// the eye: far above the few-ulp error with which intersectors compute the hit's own t, so the hit
+// surface is never its own occluder; nothing else lies in between, the camera ray found it closest.
+constexpr float kRetraceMargin = 0x1p-16f;
+
 }  // namespace
 
 std::uint64_t RayCounts::skipped_total() const { return std::accumulate(skipped.begin(), skipped.end(), std::uint64_t{0}); }
@@ -93,6 +98,14 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
   const MaterialPlan& terms = plan.materials[material_id];
   const bool prune = plan.options.prune;
   const auto skip = [&counts](SkipRule rule) { ++counts.skipped[static_cast<int>(rule)]; };
+  const auto trace_shadow = [&](const Ray& shadow_ray, std::size_t light) {
+    ++counts.shadow;
+    add_at(counts.shadow_per_light, light);
+    const std::uint64_t start = context.time_queries ? __rdtsc() : 0;
+    const bool blocked = context.accel.occluded(shadow_ray);
+    if (context.time_queries) add_at(counts.shadow_ticks_per_light, light, __rdtsc() - start);
+    return blocked;
+  };
 
   Vec3d radiance(material.emission);
   for (std::size_t j = 0; j < context.scene.lights.size(); ++j) {
@@ -144,8 +157,19 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
       continue;
     }
     bool visible = true;
-    if (plan.geometric_rules && depth == 0 && light_plan.at_eye) {
-      skip(SkipRule::light_at_eye);  // the camera ray itself found nothing between the eye and the hit
+    if (depth == 0 && light_plan.at_eye) {
+      // From a primary hit, the segment to a light at the eye is the camera ray's own, and the
+      // camera ray found nothing closer. Pruned, the shadow ray is skipped; unpruned, it retraces
+      // the camera ray's float32 line up to just before the hit, so that both modes answer the
+      // same question (a ray from the offset hit point can disagree with the camera ray by
+      // rounding where it grazes a silhouette edge).
+      if (prune) {
+        skip(SkipRule::light_at_eye);
+      } else {
+        Ray shadow_ray = ray;
+        shadow_ray.tfar = hit.t * (1.0f - kRetraceMargin);
+        visible = !trace_shadow(shadow_ray, j);
+      }
     } else if (plan.convex && glm::dot(surface.geometric_normal, to_light) > kConvexFacingMargin) {
       skip(SkipRule::convex_facing);  // the ray stays in the open half-space in front of the surface
     } else {
@@ -157,11 +181,7 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
       if (light_distance > 0.0) {
         shadow_ray.direction = Vec3f(to_light);
         shadow_ray.tfar = static_cast<float>(light_distance);
-        ++counts.shadow;
-        add_at(counts.shadow_per_light, j);
-        const std::uint64_t start = context.time_queries ? __rdtsc() : 0;
-        visible = !context.accel.occluded(shadow_ray);
-        if (context.time_queries) add_at(counts.shadow_ticks_per_light, j, __rdtsc() - start);
+        visible = !trace_shadow(shadow_ray, j);
       } else {
         skip(SkipRule::light_on_surface);  // closer than the margin: nothing can be in between
       }

@@ -32,7 +32,7 @@ struct EffectsOptions {
 enum class SkipRule : int {
   light_off,          // exact: the light contributes nothing anywhere (black, zero-width cone)
   zero_contribution,  // exact: its unshadowed term is exactly zero at this hit (e.g. n.l <= 0, no ambient/specular)
-  light_at_eye,       // exact: primary hit and the light is at the camera eye, which sees the hit
+  light_at_eye,       // exact: primary hit and the light is at the camera eye (the camera ray's own segment)
   convex_facing,      // exact: the scene is one convex object and the surface faces the light
   light_on_surface,   // always: the light is closer than the offset margin (nothing in between)
   black_reflection,   // exact: the reflection weight is black
@@ -65,8 +65,6 @@ struct EffectsPlan {
   std::vector<LightPlan> lights;        // parallel to Scene::lights
   std::vector<MaterialPlan> materials;  // parallel to Scene::materials
   bool shadows = false;                 // some shadow ray can be traced
-  // The light-at-eye and convex rules are in force (pruning on and robust ray offsets).
-  bool geometric_rules = false;
   // The whole scene is one convex object with outward normals, so a surface point whose geometric
   // normal faces the light cannot be shadowed (needs robust ray offsets, see plan_effects).
   bool convex = false;
@@ -85,10 +83,9 @@ struct EffectsPlan {
   double approximation_error_bound() const;
 };
 
-// Decides the plan after loading and flattening. `ray_offset` matters because the geometric rules
-// (light at the eye, convex scene) argue about the exact segment a shadow ray covers, which holds
-// for the traced ray only when its origin cannot fall behind the surface: they are used with
-// robust offsets only.
+// Decides the plan after loading and flattening. `ray_offset` matters because the convex rule
+// argues about the half-space a shadow ray stays in, which holds for the traced ray only when its
+// origin cannot fall behind the surface: it is used with robust offsets only.
 EffectsPlan plan_effects(const Scene& scene, const FlatScene& flat, const RayOffset& ray_offset,
                          const EffectsOptions& options);
 

@@ -57,7 +57,8 @@ struct ShadingContext {
 // with Blinn-Phong half vectors h_j = normalize(l_j + v), V_j the 0/1 shadow-ray visibility and
 // L_j the light colour divided by the point-light attenuation (and scaled by the spot falloff).
 // C_diffuse and C_ambient are multiplied by the material's diffuse texture at the hit; the
-// reflection is weighted by Material::reflective when set instead of C_specular. depth 0 is the primary hit; the
+// reflection is weighted by Material::reflective when set instead of C_specular. depth 0 is the
+// primary hit (`ray` must then start at the camera eye: a light there retraces it); the
 // reflection recurses while depth < max_depth. A miss returns settings.background.
 // Rays the plan's rules skip are not traced (counted in RayCounts::skipped); the exact rules leave
 // the result bit-identical. `throughput` (linear RGB) is the product of the reflection weights
