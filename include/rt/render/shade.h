@@ -27,7 +27,8 @@ struct RayCounts {
   std::vector<std::uint64_t> hits_per_depth;        // [d]: rays of depth d that hit a surface
   std::array<std::uint64_t, kSkipRuleCount> skipped{};  // [SkipRule]: rays not traced, per rule
   // Timestamp-counter ticks (ShadingContext::time_queries only): closest-hit queries per ray depth,
-  // shadow queries per light, and the whole render loop of the thread (set by render_image).
+  // shadow queries per light, and the whole find_color of the timed pixels (set by render_image);
+  // only ratios of these are meaningful.
   std::vector<std::uint64_t> intersect_ticks_per_depth;
   std::vector<std::uint64_t> shadow_ticks_per_light;
   std::uint64_t loop_ticks = 0;
