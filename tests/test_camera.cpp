@@ -5,7 +5,9 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <algorithm>
 #include <utility>
+#include <vector>
 
 #include "rt/core/error.h"
 #include "rt/render/camera.h"
@@ -201,4 +203,38 @@ TEST_CASE("make_camera_frame rejects unusable cameras and sizes", "[camera]") {
   SECTION("zero width") { require_input_error(camera, 0, 48); }
   SECTION("zero height") { require_input_error(camera, 64, 0); }
   SECTION("negative width") { require_input_error(camera, -64, 48); }
+}
+
+TEST_CASE("pixel samples are stratified, jittered and deterministic", "[camera]") {
+  CHECK(rt::pixel_sample_offset(3, 4, 0, 1) == rt::Vec2d(0.5));
+  for (const auto& [count, columns] : {std::pair{4, 2}, std::pair{16, 4}, std::pair{64, 8}, std::pair{6, 2},
+                                       std::pair{7, 1}, std::pair{12, 3}}) {
+    INFO("count " << count);
+    const int rows = count / columns;
+    double sum_x = 0.0, sum_y = 0.0;
+    int samples = 0;
+    for (int j = 0; j < 5; ++j)
+      for (int i = 0; i < 7; ++i) {
+        std::vector<int> cells(static_cast<std::size_t>(count), 0);
+        for (int index = 0; index < count; ++index) {
+          const rt::Vec2d p = rt::pixel_sample_offset(i, j, index, count);
+          REQUIRE(p == rt::pixel_sample_offset(i, j, index, count));  // deterministic
+          REQUIRE((p.x >= 0.0 && p.x < 1.0 && p.y >= 0.0 && p.y < 1.0));
+          const int cx = static_cast<int>(p.x * columns), cy = static_cast<int>(p.y * rows);
+          CHECK(cx == index % columns);  // sample `index` lies in its own cell
+          CHECK(cy == index / columns);
+          ++cells[static_cast<std::size_t>(cy * columns + cx)];
+          sum_x += p.x * columns - cx;  // jitter within the cell
+          sum_y += p.y * rows - cy;
+          ++samples;
+        }
+        CHECK(std::count(cells.begin(), cells.end(), 1) == count);  // every cell exactly once
+      }
+    // Jitter is uniform in the cell: its mean over the samples is 1/2 within a few standard
+    // errors (1 / sqrt(12 n)).
+    const double tolerance = 4.0 / std::sqrt(12.0 * samples);
+    CHECK(sum_x / samples == Approx(0.5).margin(tolerance));
+    CHECK(sum_y / samples == Approx(0.5).margin(tolerance));
+  }
+  CHECK(rt::pixel_sample_offset(0, 0, 0, 4) != rt::pixel_sample_offset(1, 0, 0, 4));  // pixels differ
 }

@@ -138,6 +138,13 @@ TEST_CASE("rt render --explain prints the plan and the budget; --no-prune traces
   };
   CHECK(traced("pruned.json") < traced("full.json"));
 
+  const Run sampled = run_rt(dir, "render --quiet --spp 4 --width 80 --height 60 -o spp.png --stats spp.json");
+  REQUIRE(sampled.status == 0);
+  const nlohmann::json spp_stats = nlohmann::json::parse(read_file(dir.path() / "spp.json"));
+  CHECK(spp_stats.at("samples_per_pixel") == 4);
+  CHECK(spp_stats.at("rays").at("camera") == 4 * 80 * 60);
+  CHECK(run_rt(dir, "render --quiet --spp 0 -o never.png").status == 2);
+
   const Run bad = run_rt(dir, "render --quiet --min-throughput 2 -o never.png");
   CHECK(bad.status == 2);
   CHECK_THAT(bad.err, Catch::Contains("--min-throughput"));

@@ -40,10 +40,10 @@ std::uint64_t sum(const std::vector<std::uint64_t>& values, std::size_t end = st
 
 // Every hit decides once per light (shadow ray or one skip rule) and, below max_depth, once about
 // its reflection (ray or one skip rule); every camera pixel casts one ray.
-void check_budget_adds_up(const rt::RenderResult& result, const rt::Scene& scene) {
+void check_budget_adds_up(const rt::RenderResult& result, const rt::Scene& scene, std::uint64_t spp = 1) {
   const rt::RayCounts& rays = result.rays;
   const std::uint64_t hits = sum(rays.hits_per_depth);
-  CHECK(rays.camera == std::uint64_t(scene.settings.width) * std::uint64_t(scene.settings.height));
+  CHECK(rays.camera == std::uint64_t(scene.settings.width) * std::uint64_t(scene.settings.height) * spp);
   CHECK(rays.shadow == sum(rays.shadow_per_light));
   CHECK(rays.reflection == sum(rays.reflection_per_depth));
   CHECK(rays.shadow + skipped(rays, SkipRule::light_off) + skipped(rays, SkipRule::zero_contribution) +

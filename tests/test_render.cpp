@@ -28,12 +28,13 @@ namespace {
 using rt_test::read_file;
 using rt_test::write_file;
 
-rt::RenderResult render(const rt::Scene& scene, rt::AccelKind kind, int threads, int tile_size = 16) {
+rt::RenderResult render(const rt::Scene& scene, rt::AccelKind kind, int threads, int tile_size = 16, int spp = 1) {
   const rt::FlatScene flat = rt::flatten_scene(scene);
   const std::unique_ptr<rt::Accel> accel = rt::build_accel(kind, flat);
   rt::RenderOptions options;
   options.threads = threads;
   options.tile_size = tile_size;
+  options.samples_per_pixel = spp;
   return rt::render_image(scene, flat, *accel, options);
 }
 
@@ -72,9 +73,11 @@ TEST_CASE("rendering is independent of thread count and tile size", "[render]") 
   rt::Scene scene = rt::make_default_scene();
   scene.settings.width = 200;
   scene.settings.height = 150;
-  const rt::RenderResult one = render(scene, rt::AccelKind::embree, 1);
-  const rt::RenderResult two = render(scene, rt::AccelKind::embree, 2);
-  const rt::RenderResult odd_tiles = render(scene, rt::AccelKind::embree, 2, 7);
+  const int spp = GENERATE(1, 4);
+  INFO("spp " << spp);
+  const rt::RenderResult one = render(scene, rt::AccelKind::embree, 1, 16, spp);
+  const rt::RenderResult two = render(scene, rt::AccelKind::embree, 2, 16, spp);
+  const rt::RenderResult odd_tiles = render(scene, rt::AccelKind::embree, 2, 7, spp);
   REQUIRE(one.image.pixels.size() == 200u * 150u);
   for (const rt::RenderResult* other : {&two, &odd_tiles}) {
     REQUIRE(other->image.pixels.size() == one.image.pixels.size());
@@ -87,9 +90,50 @@ TEST_CASE("rendering is independent of thread count and tile size", "[render]") 
     CHECK(other->rays.shadow == one.rays.shadow);
     CHECK(other->rays.reflection == one.rays.reflection);
   }
-  CHECK(one.rays.camera == 200u * 150u);
+  CHECK(one.rays.camera == 200u * 150u * unsigned(spp));
   CHECK(one.rays.shadow > 0);
   CHECK(one.rays.reflection > 0);
+}
+
+// One emissive triangle on black, nothing else: with one sample per pixel every pixel is 0 or 1;
+// with N samples an edge pixel is the fraction k / N of its samples that hit, exactly (a box filter).
+TEST_CASE("--spp N averages N stratified samples per pixel; --spp 1 is the pixel centre", "[render]") {
+  rt::Scene scene = rt_test::make_scene(
+      {{rt_test::make_flat_mesh({{rt::Vec3f(-1.3f, -0.9f, 0), rt::Vec3f(1.1f, -0.7f, 0), rt::Vec3f(0.1f, 1.2f, 0)}}), 0}});
+  rt::Material glow;
+  glow.emission = rt::Color(1.0f);
+  scene.materials = {glow};
+  scene.settings.width = 48;
+  scene.settings.height = 36;
+  scene.settings.max_depth = 0;
+  const rt::RenderResult centre = render(scene, rt::AccelKind::embree, 2);
+  const rt::RenderResult default_options = [&] {
+    const rt::FlatScene flat = rt::flatten_scene(scene);
+    return rt::render_image(scene, flat, *rt::build_accel(rt::AccelKind::embree, flat), rt::RenderOptions{});
+  }();
+  CHECK(std::memcmp(centre.image.pixels.data(), default_options.image.pixels.data(),
+                    centre.image.pixels.size() * sizeof(rt::Color)) == 0);
+  double coverage_1 = 0.0;
+  for (const rt::Color& c : centre.image.pixels) {
+    CHECK((c.r == 0.0f || c.r == 1.0f));
+    coverage_1 += c.r;
+  }
+  for (const int spp : {4, 16, 6}) {
+    INFO("spp " << spp);
+    const rt::RenderResult sampled = render(scene, rt::AccelKind::embree, 2, 16, spp);
+    CHECK(sampled.rays.camera == 48u * 36u * unsigned(spp));
+    std::size_t partial = 0;
+    double coverage = 0.0;
+    for (const rt::Color& c : sampled.image.pixels) {
+      const double k = double(c.r) * spp;
+      CHECK(k == Approx(std::round(k)).margin(1e-4));  // a whole number of the samples hit
+      partial += c.r > 0.0f && c.r < 1.0f;
+      coverage += c.r;
+    }
+    CHECK(partial > 0);  // edges are anti-aliased
+    // Both estimate the triangle's area in pixels; they agree to within the edge pixels' count.
+    CHECK(std::abs(coverage - coverage_1) < double(partial));
+  }
 }
 
 TEST_CASE("render reports progress once per tile, reaching 1", "[render]") {

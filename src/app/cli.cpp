@@ -44,6 +44,7 @@ struct RenderArgs {
   int sphere_tessellation = 0;
   std::string ray_offset = "robust";
   int threads = 0;
+  int spp = 1;
   std::string stats_path;
   bool explain = false;
   EffectsOptions effects;
@@ -118,6 +119,7 @@ int run_render(const RenderArgs& args) {
   ProgressBar progress("rendering", !args.quiet);
   RenderOptions options;
   options.threads = threads;
+  options.samples_per_pixel = args.spp;
   options.ray_offset = ray_offset;
   options.effects = args.effects;
   options.time_queries = args.explain || !args.stats_path.empty();
@@ -144,6 +146,7 @@ int run_render(const RenderArgs& args) {
     stats["threads"] = threads;
     stats["image"] = {{"width", scene.settings.width}, {"height", scene.settings.height}};
     stats["max_depth"] = scene.settings.max_depth;
+    stats["samples_per_pixel"] = args.spp;
     stats["triangles"] = flat.triangle_count();
     stats["spheres"] = flat.spheres.size();
     stats["sphere_tessellation"] = args.sphere_tessellation;
@@ -252,6 +255,11 @@ int run_cli(int argc, char** argv) {
   render->add_option("--height", render_args.height, "Image height in pixels")->check(CLI::Range(1, kMaxImageSide));
   render->add_option("--max-depth", render_args.max_depth, "Reflection depth (0 = no reflections)")
       ->check(CLI::Range(0, kMaxReflectionDepth));
+  render->add_option("--spp", render_args.spp,
+                     "Samples per pixel: 1 = the pixel centre (the seed's camera); N > 1 = stratified jittered "
+                     "samples averaged with a box filter (anti-aliasing), the same image for any thread count")
+      ->check(CLI::Range(1, 1 << 16))
+      ->capture_default_str();
   render->add_option("--accel", render_args.accel, "Intersector: embree (fast), reference (watertight, double, brute force) or "
                      "reference-barycentric (the seed's plain solve, double, brute force)")
       ->check(CLI::IsMember({"embree", "reference", "reference-barycentric"}))

@@ -1,6 +1,7 @@
 #include "rt/render/camera.h"
 
 #include <cmath>
+#include <cstdint>
 #include <numbers>
 
 #include <fmt/format.h>
@@ -33,9 +34,41 @@ Vec3d camera_direction(const CameraFrame& frame, double x, double y) {
 }
 
 Ray ray_through_pixel(const CameraFrame& frame, int i, int j) {
+  return ray_through_pixel_sample(frame, i, j, 0, 1);
+}
+
+namespace {
+
+// splitmix64's finaliser (Steele, Lea, Flood, "Fast Splittable Pseudorandom Number Generators",
+// OOPSLA 2014): a bijective mix whose outputs pass BigCrush for consecutive inputs.
+std::uint64_t mix64(std::uint64_t z) {
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+
+// The top 53 bits of `bits` as a double in [0, 1).
+double unit_double(std::uint64_t bits) { return static_cast<double>(bits >> 11) * 0x1p-53; }
+
+}  // namespace
+
+Vec2d pixel_sample_offset(int i, int j, int index, int count) {
+  if (count <= 1) return Vec2d(0.5);
+  int columns = 1;
+  for (int c = 1; c * c <= count; ++c)
+    if (count % c == 0) columns = c;
+  const int rows = count / columns;
+  const std::uint64_t key = (std::uint64_t(std::uint32_t(j)) << 32 | std::uint32_t(i)) * 0x9e3779b97f4a7c15ULL +
+                            std::uint64_t(index);
+  const std::uint64_t a = mix64(key), b = mix64(a ^ 0xd1b54a32d192ed03ULL);
+  return Vec2d((index % columns + unit_double(a)) / columns, (index / columns + unit_double(b)) / rows);
+}
+
+Ray ray_through_pixel_sample(const CameraFrame& frame, int i, int j, int index, int count) {
+  const Vec2d offset = pixel_sample_offset(i, j, index, count);
   Ray ray;
   ray.origin = Vec3f(frame.eye);
-  ray.direction = Vec3f(camera_direction(frame, i + 0.5, j + 0.5));
+  ray.direction = Vec3f(camera_direction(frame, i + offset.x, j + offset.y));
   return ray;
 }
 

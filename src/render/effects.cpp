@@ -176,7 +176,8 @@ std::vector<std::string> describe_plan(const EffectsPlan& plan, const Scene& sce
                                                                       : "off (--no-prune): every ray is traced"));
   for (std::size_t j = 0; j < plan.lights.size(); ++j)
     lines.push_back(fmt::format("light {:<5} {}", j, plan.lights[j].why));
-  if (plan.lights.empty()) lines.push_back("shadows     off: no lights");
+  if (!plan.shadows)
+    lines.push_back(fmt::format("shadows     off: {}", plan.lights.empty() ? "no lights" : "no light contributes"));
   lines.push_back(fmt::format("convex      {}", plan.convex_why));
   if (plan.reflections) {
     std::size_t reflective = 0;

@@ -52,6 +52,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   const ShadingContext context{scene, flat, accel, result.plan, options.ray_offset, &textures, false};
   const ShadingContext timed_context{scene, flat, accel, result.plan, options.ray_offset, &textures, true};
   const int tile = std::max(1, options.tile_size);
+  const int spp = std::max(1, options.samples_per_pixel);
   const int tiles_x = (width + tile - 1) / tile, tiles_y = (height + tile - 1) / tile;
   const int tile_count = tiles_x * tiles_y;
 
@@ -68,15 +69,18 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
       const int x1 = std::min(x0 + tile, width), y1 = std::min(y0 + tile, height);
       for (int y = y0; y < y1; ++y)
         for (int x = x0; x < x1; ++x) {
-          ++counts.camera;
-          const Ray ray = ray_through_pixel(frame, x, y);
-          if (options.time_queries && is_timing_sample(x, y)) {
-            const std::uint64_t start = __rdtsc();
-            result.image.at(x, y) = find_color(timed_context, ray, 0, counts);
-            counts.loop_ticks += __rdtsc() - start;
+          const bool timed = options.time_queries && is_timing_sample(x, y);
+          const std::uint64_t start = timed ? __rdtsc() : 0;
+          if (spp == 1) {
+            result.image.at(x, y) = find_color(timed ? timed_context : context, ray_through_pixel(frame, x, y), 0, counts);
           } else {
-            result.image.at(x, y) = find_color(context, ray, 0, counts);
+            Vec3d sum(0.0);  // linear RGB, double: the box filter's average
+            for (int s = 0; s < spp; ++s)
+              sum += Vec3d(find_color(timed ? timed_context : context, ray_through_pixel_sample(frame, x, y, s, spp), 0, counts));
+            result.image.at(x, y) = Color(sum / double(spp));
           }
+          counts.camera += std::uint64_t(spp);
+          if (timed) counts.loop_ticks += __rdtsc() - start;
         }
       const int done = ++tiles_done;
       if (options.on_progress) {

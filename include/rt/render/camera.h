@@ -29,4 +29,14 @@ Vec3d camera_direction(const CameraFrame& frame, double x, double y);
 // The float32 ray from the eye through the centre of pixel (i, j), row j = 0 at the top.
 Ray ray_through_pixel(const CameraFrame& frame, int i, int j);
 
+// Where sample `index` of `count` (count >= 1) falls inside pixel (i, j), as an offset in
+// [0, 1)^2 from the pixel's top-left corner (pixel units). count == 1: the centre (0.5, 0.5).
+// Otherwise stratified: a columns x rows grid, columns the largest divisor of count not above
+// sqrt(count), one sample jittered uniformly inside each cell. The jitter is a hash of (i, j,
+// index) (splitmix64), so the image is the same whatever the thread count or tile order.
+Vec2d pixel_sample_offset(int i, int j, int index, int count);
+
+// The float32 ray from the eye through sample `index` of `count` of pixel (i, j).
+Ray ray_through_pixel_sample(const CameraFrame& frame, int i, int j, int index, int count);
+
 }  // namespace rt

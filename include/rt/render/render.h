@@ -12,6 +12,9 @@ namespace rt {
 struct RenderOptions {
   int threads = 0;     // worker threads; 0 = all hardware threads
   int tile_size = 16;  // square tiles, in pixels
+  // Camera rays per pixel, averaged with equal weights (a box filter over the pixel); 1 traces the
+  // pixel centre exactly as the seed does, N > 1 stratified jittered samples (pixel_sample_offset).
+  int samples_per_pixel = 1;
   RayOffset ray_offset{};
   EffectsOptions effects{};  // what may be skipped (exact pruning by default)
   // Estimate the share of render time per ray kind (RayCounts' tick counters) from one pixel in
