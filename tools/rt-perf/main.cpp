@@ -1,0 +1,29 @@
+// rt-perf: measures what accuracy costs in time. `intersect` compares Embree with the reference
+// intersector (build time and memory, Mrays/s, agreement); `accuracy` renders a ground truth and
+// sweeps one knob at a time (spp, depth, tessellation, Embree options, ray offsets, approximations).
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include "accuracy.h"
+#include "intersect.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"rt-perf: what accuracy costs in time, and Embree against the reference intersector"};
+  app.require_subcommand(1);
+  const std::function<int()> run_intersect = rt::perf::add_intersect_command(app);
+  const std::function<int()> run_accuracy = rt::perf::add_accuracy_command(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& error) {
+    const int code = app.exit(error);
+    return code == 0 ? 0 : 2;
+  }
+  try {
+    if (app.got_subcommand("intersect")) return run_intersect();
+    if (app.got_subcommand("accuracy")) return run_accuracy();
+  } catch (const std::exception& error) {
+    fmt::print(stderr, "rt-perf: error: {}\n", error.what());
+  }
+  return 1;
+}
