@@ -101,12 +101,13 @@ struct RtRun {
   std::string out, err;
 };
 
-// Runs `rt ARGS` (ARGS already shell-quoted as needed) with `cwd` as working directory; stdout and
-// stderr go to files in a separate directory, so `cwd` ends up holding exactly what rt wrote.
-inline RtRun run_rt_in(const TempDir& cwd, const std::string& args) {
+// Runs `EXECUTABLE ARGS` (ARGS already shell-quoted as needed) with `cwd` as working directory;
+// stdout and stderr go to files in a separate directory, so `cwd` ends up holding exactly what the
+// program wrote. run_rt_in runs the `rt` executable.
+inline RtRun run_in(const TempDir& cwd, const std::string& executable, const std::string& args) {
   auto quoted = [](const std::string& s) { return "'" + s + "'"; };
   TempDir capture;
-  const std::string command = "cd " + quoted(cwd.path().string()) + " && " + quoted(RT_EXECUTABLE) + " " + args +
+  const std::string command = "cd " + quoted(cwd.path().string()) + " && " + quoted(executable) + " " + args +
                               " >" + quoted(capture / "out") + " 2>" + quoted(capture / "err") + " </dev/null";
   const int raw = std::system(command.c_str());
   RtRun run;
@@ -115,5 +116,7 @@ inline RtRun run_rt_in(const TempDir& cwd, const std::string& args) {
   run.err = read_file(capture / "err");
   return run;
 }
+
+inline RtRun run_rt_in(const TempDir& cwd, const std::string& args) { return run_in(cwd, RT_EXECUTABLE, args); }
 
 }  // namespace rt_test
