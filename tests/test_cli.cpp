@@ -122,7 +122,7 @@ TEST_CASE("rt render --stats writes the documented JSON", "[cli]") {
   CHECK(image.height == 60);
 }
 
-TEST_CASE("rt render --explain prints the plan and the budget; --no-prune traces more, same image", "[cli]") {
+TEST_CASE("rt render --explain prints the plan and the budget, --no-prune traces more, same image", "[cli]") {
   rt_test::TempDir dir;
   const Run pruned = run_rt(dir, "render --quiet --explain --width 80 --height 60 -o pruned.png --stats pruned.json");
   INFO("stderr: " << pruned.err);

@@ -256,7 +256,7 @@ TEST_CASE("gltf: a spot light lights its cone and nothing outside it", "[gltf]")
   CHECK(image.at(20, 2).r == 0.0f);
 }
 
-TEST_CASE("gltf: cameras are chosen by name or index; orthographic ones are refused", "[gltf]") {
+TEST_CASE("gltf: cameras are chosen by name or index, orthographic ones are refused", "[gltf]") {
   rt_test::TempDir dir;
   GltfBuilder builder;
   builder.triangle(true);
@@ -282,7 +282,7 @@ TEST_CASE("gltf: cameras are chosen by name or index; orthographic ones are refu
   CHECK_THAT(load_error(path, {std::nullopt, "tele"}), Contains("no camera or camera node is named 'tele'"));
 }
 
-TEST_CASE("gltf: --gltf-scene picks a scene; the default is the file's 'scene'", "[gltf]") {
+TEST_CASE("gltf: --gltf-scene picks a scene, the default is the file's 'scene'", "[gltf]") {
   rt_test::TempDir dir;
   GltfBuilder builder;
   builder.triangle(true);
@@ -294,7 +294,7 @@ TEST_CASE("gltf: --gltf-scene picks a scene; the default is the file's 'scene'",
   CHECK_THAT(load_error(path, {5, ""}), Contains("/scenes") && Contains("out of range"));
 }
 
-TEST_CASE("gltf: points and lines are skipped and counted; strips and fans are triangulated", "[gltf]") {
+TEST_CASE("gltf: points and lines are skipped and counted, strips and fans are triangulated", "[gltf]") {
   rt_test::TempDir dir;
   GltfBuilder builder;
   const int zigzag = builder.vec3s({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}});  // strip order

@@ -371,7 +371,7 @@ void check_degenerate(std::size_t p) {
 
 }  // namespace
 
-TEST_CASE("degenerate triangles never produce NaN; Embree default and the seed's solve never hit them",
+TEST_CASE("degenerate triangles never produce NaN, Embree default and the seed's solve never hit them",
           "[numerics]") {
   for (std::size_t p = 0; p < kPathCount; ++p) {
     INFO(name(kAllPaths[p]));

@@ -168,7 +168,7 @@ TEST_CASE("OBJ scene: a missing MTL file is a warning and the default material i
   CHECK(quiet.err.empty());
 }
 
-TEST_CASE("OBJ scene: without vn, smooth angle-weighted normals; with vn, the file's", "[obj]") {
+TEST_CASE("OBJ scene: without vn, smooth angle-weighted normals, with vn, the file's", "[obj]") {
   rt_test::TempDir dir;
   write_file(dir.path() / "pyramid.obj", kPyramidObj);
   const rt::Scene scene = rt::load_obj_scene(dir / "pyramid.obj");

@@ -117,7 +117,7 @@ TEST_CASE("accuracy CSV and Markdown rows carry every column", "[perf]") {
   CHECK(std::count(table.begin(), table.end(), '\n') == 4);  // header, rule, two rows
 }
 
-TEST_CASE("rt-perf accuracy writes the CSV, the table and the truth; bad arguments are usage errors", "[perf]") {
+TEST_CASE("rt-perf accuracy writes the CSV, the table and the truth, bad arguments are usage errors", "[perf]") {
   rt_test::TempDir dir;
   const rt_test::RtRun run = rt_test::run_in(
       dir, RT_PERF_EXECUTABLE,
