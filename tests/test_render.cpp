@@ -97,7 +97,7 @@ TEST_CASE("rendering is independent of thread count and tile size", "[render]") 
 
 // One emissive triangle on black, nothing else: with one sample per pixel every pixel is 0 or 1;
 // with N samples an edge pixel is the fraction k / N of its samples that hit, exactly (a box filter).
-TEST_CASE("--spp N averages N stratified samples per pixel; --spp 1 is the pixel centre", "[render]") {
+TEST_CASE("render: --spp N averages N stratified samples per pixel, --spp 1 is the pixel centre", "[render]") {
   rt::Scene scene = rt_test::make_scene(
       {{rt_test::make_flat_mesh({{rt::Vec3f(-1.3f, -0.9f, 0), rt::Vec3f(1.1f, -0.7f, 0), rt::Vec3f(0.1f, 1.2f, 0)}}), 0}});
   rt::Material glow;
