@@ -298,9 +298,23 @@ double probe_seconds_per_ray(const std::function<void(std::span<const Ray>)>& ca
     const Clock::time_point start = Clock::now();
     cast_once(sample);
     const double seconds = seconds_since(start);
-    if (seconds > 0.01 || sample.size() == rays.size() || probe > kProbeRays) return seconds / double(sample.size());
+    if (seconds > 0.05 || sample.size() == rays.size() || probe > kProbeRays) return seconds / double(sample.size());
   }
   return 0.0;
+}
+
+// Runs `cast` (one timed run each) up to `runs` times, stopping once the runs so far took more than
+// `budget` seconds: the probe's estimate can be off when other processes share the cores.
+Timing runs_within_budget(int runs, double budget, const std::function<Timing()>& cast) {
+  Timing total;
+  double spent = 0.0;
+  for (int run = 0; run < runs && (run == 0 || spent <= budget); ++run) {
+    const Timing one = cast();
+    total.rays = one.rays;
+    total.seconds.insert(total.seconds.end(), one.seconds.begin(), one.seconds.end());
+    spent += one.seconds.empty() ? 0.0 : one.seconds.front();
+  }
+  return total;
 }
 
 std::vector<Ray> pick(std::span<const Ray> rays, const std::vector<std::size_t>& indices) {
@@ -316,6 +330,10 @@ std::string plan_note(const ReferencePlan& plan, std::size_t total, double budge
     return fmt::format("reduced to {} of {} rays: estimated {} s for all > budget {} s", plan.rays, total,
                        sig3(plan.estimated_seconds), budget);
   return "";
+}
+
+std::string join_notes(const std::string& a, const std::string& b) {
+  return a.empty() ? b : b.empty() ? a : a + "; " + b;
 }
 
 class Runner {
@@ -448,19 +466,22 @@ class Runner {
       if (!ref.plan.skipped) {
         const std::vector<Ray> subset = pick(rays, ref.indices);
         if (closest) {
-          reference_timing = time_intersect(reference, subset, o_.runs, reference_hits);
+          reference_timing = runs_within_budget(o_.runs, o_.budget,
+                                                [&] { return time_intersect(reference, subset, 1, reference_hits); });
           std::vector<Hit> embree_subset;
           for (std::size_t i : ref.indices) embree_subset.push_back(embree_hits[i]);
           agreement = compare_hits(embree_subset, reference_hits);
         } else {
-          reference_timing = time_occluded(reference, subset, o_.runs, reference_occluded);
+          reference_timing = runs_within_budget(o_.runs, o_.budget,
+                                                [&] { return time_occluded(reference, subset, 1, reference_occluded); });
           std::vector<std::uint8_t> embree_subset;
           for (std::size_t i : ref.indices) embree_subset.push_back(embree_occluded[i]);
           agreement = compare_occlusion(embree_subset, reference_occluded);
         }
       }
     }
-    const std::string note = plan_note(ref.plan, rays.size(), o_.budget);
+    const std::string note =
+        join_notes(plan_note(ref.plan, rays.size(), o_.budget), runs_note(reference_timing, ref.plan.skipped || rays.empty()));
     if (!note.empty()) notes.push_back(fmt::format("{} rays, reference: {}", label, note));
     const bool has_reference = !rays.empty() && !ref.plan.skipped;
     const double speedup =
@@ -488,6 +509,13 @@ class Runner {
         add({path, "agreement_" + kind + "_t_off_1e-4_relative", "embree-vs-reference", "",
              fmt::format("{}", agreement->rays), fmt::format("{}", agreement->t_mismatches), "", "", "rays", note});
     }
+  }
+
+  // Says so when the budget ran out before all runs (the median is then of fewer runs).
+  std::string runs_note(const Timing& timing, bool skipped) const {
+    if (skipped || timing.seconds.size() >= std::size_t(o_.runs)) return "";
+    return fmt::format("only {} of {} runs fit the budget (the probe underestimated; cores shared?)",
+                       timing.seconds.size(), o_.runs);
   }
 
   static std::string mrays_cell(const Timing& timing) {
@@ -531,8 +559,13 @@ class Runner {
         return time_intersect(*reference, set, runs, reference_hits);
       });
       Timing reference_timing;
-      if (!ref.plan.skipped) reference_timing = time_intersect(*reference, pick(rays, ref.indices), o_.runs, reference_hits);
-      const std::string note = plan_note(ref.plan, rays.size(), o_.budget);
+      if (!ref.plan.skipped) {
+        const std::vector<Ray> subset = pick(rays, ref.indices);
+        reference_timing = runs_within_budget(o_.runs, o_.budget,
+                                              [&] { return time_intersect(*reference, subset, 1, reference_hits); });
+      }
+      const std::string note =
+          join_notes(plan_note(ref.plan, rays.size(), o_.budget), runs_note(reference_timing, ref.plan.skipped));
       if (!note.empty()) notes.push_back(fmt::format("{} triangles: reference {}", flat.triangle_count(), note));
       const bool has_reference = !ref.plan.skipped;
       const double speedup = has_reference && reference_timing.median_mrays_per_second() > 0.0
