@@ -1,6 +1,7 @@
 #include "rt/accel/embree_accel.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <mutex>
 #include <string>
@@ -225,6 +226,14 @@ struct EmbreeAccel::Impl {
   UserGeometryData user_data;  // read by the user-geometry callbacks
   std::mutex error_mutex;
   std::string first_error;  // recorded by the callback; never thrown across Embree's frames
+  std::atomic<std::int64_t> memory_bytes{0};  // net bytes the device allocated (see memory_bytes())
+
+  // Embree may call this from several threads: positive bytes before an allocation, negative after
+  // a free (or to undo a failed allocation). Returning true lets the allocation proceed.
+  static bool on_memory(void* user, ssize_t bytes, bool /*post*/) {
+    static_cast<Impl*>(user)->memory_bytes.fetch_add(bytes, std::memory_order_relaxed);
+    return true;
+  }
 
   static void on_error(void* user, RTCError code, const char* message) {
     auto* self = static_cast<Impl*>(user);
@@ -269,6 +278,7 @@ EmbreeAccel::EmbreeAccel(const FlatScene& flat, const AccelOptions& options) : i
   if (!impl_->device)
     throw RuntimeError(fmt::format("creating the Embree device failed: {}", error_name(rtcGetDeviceError(nullptr))));
   rtcSetDeviceErrorFunction(impl_->device, &Impl::on_error, impl_.get());
+  rtcSetDeviceMemoryMonitorFunction(impl_->device, &Impl::on_memory, impl_.get());
 
   impl_->scene = rtcNewScene(impl_->device);
   // The context filter orders the native triangle kernel's closest hits; user geometries order
@@ -301,6 +311,10 @@ EmbreeAccel::EmbreeAccel(const FlatScene& flat, const AccelOptions& options) : i
 }
 
 EmbreeAccel::~EmbreeAccel() = default;
+
+std::size_t EmbreeAccel::memory_bytes() const {
+  return static_cast<std::size_t>(std::max<std::int64_t>(impl_->memory_bytes.load(std::memory_order_relaxed), 0));
+}
 
 Hit EmbreeAccel::intersect(const Ray& ray) const {
   HitContext context;

@@ -2,6 +2,7 @@
 // Embree 3 backend. This header and embree_accel.cpp are the only places that know Embree exists;
 // the Embree headers are included by the .cpp alone.
 
+#include <cstddef>
 #include <memory>
 
 #include "rt/accel/accel.h"
@@ -30,6 +31,11 @@ class EmbreeAccel final : public Accel {
   Hit intersect(const Ray& ray) const override;
   bool occluded(const Ray& ray) const override;
   std::string_view name() const override { return "embree"; }
+
+  // Bytes Embree's device holds now (net of frees; the BVH, builder arenas and device state),
+  // counted by a memory monitor callback (rtcSetDeviceMemoryMonitorFunction) from device creation
+  // on. FlatScene's vertex and index buffers are shared, not copied, and are not included.
+  std::size_t memory_bytes() const;
 
  private:
   struct Impl;
