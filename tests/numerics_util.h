@@ -24,6 +24,14 @@ using rt::Vec3d;
 using rt::Vec3f;
 using rt::Vec3u;
 
+// Where a test puts its objects: translated by `offset`, sized by `scale` (world units), named
+// for the printed tables. Far from the origin float32 spacing grows, which is what the tests probe.
+struct Placement {
+  const char* name;
+  Vec3d offset;
+  double scale;
+};
+
 // Unit roundoff of float32.
 inline constexpr double kFloatRoundoff = 0x1p-24;
 

@@ -57,12 +57,7 @@ Mat4d random_ellipsoid(std::mt19937& rng, const Vec3d& offset, double size) {
   return glm::scale(m, size * Vec3d(axis(rng), axis(rng), axis(rng)));
 }
 
-struct SphereTransform {
-  const char* name;
-  Vec3d offset;
-  double size;
-};
-const SphereTransform kPlacements[] = {
+const Placement kPlacements[] = {
     {"origin, size 1", Vec3d(0.0), 1.0},
     {"origin, size 1e-3", Vec3d(0.0), 1e-3},
     {"origin, size 1e3", Vec3d(0.0), 1e3},
@@ -122,10 +117,10 @@ TEST_CASE("Embree and the reference return bit-identical sphere hits", "[spheres
             << "| placement | ellipsoids | rays | reference hits | Embree native: identical | Embree watertight: identical |\n"
             << "|---|---|---|---|---|---|\n";
   std::uint32_t seed = 500u;
-  for (const SphereTransform& placement : kPlacements) {
+  for (const Placement& placement : kPlacements) {
     std::mt19937 rng(++seed);
     std::vector<Mat4d> transforms;
-    for (int i = 0; i < 40; ++i) transforms.push_back(random_ellipsoid(rng, placement.offset, placement.size));
+    for (int i = 0; i < 40; ++i) transforms.push_back(random_ellipsoid(rng, placement.offset, placement.scale));
     const rt::FlatScene flat = flat_spheres(transforms);
     rt::AccelOptions watertight;
     watertight.embree_kernel = rt::EmbreeKernel::watertight;
@@ -136,8 +131,8 @@ TEST_CASE("Embree and the reference return bit-identical sphere hits", "[spheres
     auto same = [](const rt::Hit& a, const rt::Hit& b) { return a.t == b.t && a.primitive == b.primitive; };
     for (int i = 0; i < 5000; ++i) {
       rt::Ray ray;
-      ray.origin = Vec3f(placement.offset + placement.size * random_in_ball(rng, 6.0));
-      const Vec3d target = placement.offset + placement.size * random_in_ball(rng, 2.5);
+      ray.origin = Vec3f(placement.offset + placement.scale * random_in_ball(rng, 6.0));
+      const Vec3d target = placement.offset + placement.scale * random_in_ball(rng, 2.5);
       ray.direction = Vec3f(target - Vec3d(ray.origin));
       const rt::Hit r = reference->intersect(ray);
       ++rays;
@@ -162,20 +157,20 @@ TEST_CASE("rays spawned from sphere hits never re-hit the sphere they leave", "[
             << "|---|---|---|---|---|---|---|\n";
   std::uint32_t seed = 900u;
   std::size_t robust_total = 0;
-  for (const SphereTransform& placement : kPlacements) {
+  for (const Placement& placement : kPlacements) {
     for (const char* offset : {"robust", "fixed:1e-4"}) {
       const rt::RayOffset policy = rt::parse_ray_offset(offset);
       std::mt19937 rng(++seed);
       std::size_t outwards = 0, rehits = 0, inwards = 0, escapes = 0, near_hits = 0;
       for (int e = 0; e < 50; ++e) {
-        const Mat4d transform = random_ellipsoid(rng, placement.offset, placement.size);
+        const Mat4d transform = random_ellipsoid(rng, placement.offset, placement.scale);
         const Vec3d centre(transform[3]);
         const rt::FlatScene flat = flat_spheres({transform});
         const auto accel = rt::build_accel(rt::AccelKind::embree, flat);
         for (int h = 0; h < 10; ++h) {
           rt::Ray primary;
-          primary.origin = Vec3f(centre + placement.size * 5.0 * random_unit_vector(rng));
-          primary.direction = Vec3f(centre + placement.size * random_in_ball(rng, 0.2) - Vec3d(primary.origin));
+          primary.origin = Vec3f(centre + placement.scale * 5.0 * random_unit_vector(rng));
+          primary.direction = Vec3f(centre + placement.scale * random_in_ball(rng, 0.2) - Vec3d(primary.origin));
           const rt::Hit hit = accel->intersect(primary);
           if (!hit.found()) continue;
           const rt::SurfacePoint surface = rt::make_sphere_surface_point(

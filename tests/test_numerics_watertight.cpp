@@ -51,11 +51,6 @@ bool asserted(Path path) {
 // ---------------------------------------------------------------------------------------------
 // 1. Watertight closed meshes.
 
-struct Placement {
-  const char* name;
-  Vec3d offset;
-  double scale;
-};
 // Far from the origin float32 spacing grows: 2^-7 ~ 0.008 at 1e5 and 2^-6 ~ 0.016 beyond 131072
 // (the third offset's z). The meshes there get radius 10 (edges ~1, over 60 float32 steps), so the
 // rounded mesh keeps its shape; a unit mesh at 1e5 would be a few float steps across.

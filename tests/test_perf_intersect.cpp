@@ -31,8 +31,8 @@ rt::FlatScene sphere_mesh_scene(std::size_t target) {
 TEST_CASE("intersect: ray sets have the requested sizes and are deterministic", "[perf]") {
   const rt::Scene scene = rt::make_default_scene();
   const rt::FlatScene flat = rt::flatten_scene(scene);
-  const rt::perf::Bounds bounds = rt::perf::scene_bounds(flat);
-  REQUIRE(bounds.lower.x < bounds.upper.x);
+  const rt::Bounds3d bounds = rt::flat_bounds(flat);
+  REQUIRE(bounds.lo.x < bounds.hi.x);
 
   const std::vector<rt::Ray> camera = rt::perf::make_camera_rays(scene, 32, 24);
   CHECK(camera.size() == 32u * 24u);
@@ -46,8 +46,8 @@ TEST_CASE("intersect: ray sets have the requested sizes and are deterministic", 
   CHECK_FALSE(same_rays(a, c));
   for (const rt::Ray& ray : a) {
     for (int k = 0; k < 3; ++k) {
-      CHECK(ray.origin[k] >= float(bounds.lower[k]) - 1e-5f);
-      CHECK(ray.origin[k] <= float(bounds.upper[k]) + 1e-5f);
+      CHECK(ray.origin[k] >= float(bounds.lo[k]) - 1e-5f);
+      CHECK(ray.origin[k] <= float(bounds.hi[k]) + 1e-5f);
     }
     CHECK(std::abs(glm::length(rt::Vec3d(ray.direction)) - 1.0) < 1e-6);
   }

@@ -183,17 +183,7 @@ int run_info(const std::string& scene_path, const GltfOptions& gltf, const Scene
   const FlatScene flat = flatten_scene(scene);
   std::size_t models = 0;
   for (const Node& node : scene.nodes) models += node.models.size();
-  Vec3d lo(kInfinity), hi(-kInfinity);
-  for (const Vec3f& p : flat.positions) {
-    lo = glm::min(lo, Vec3d(p));
-    hi = glm::max(hi, Vec3d(p));
-  }
-  for (const FlatSphere& sphere : flat.spheres) {
-    Vec3d lower, upper;
-    sphere_bounds(sphere, lower, upper);
-    lo = glm::min(lo, lower);
-    hi = glm::max(hi, upper);
-  }
+  const Bounds3d bounds = flat_bounds(flat);
   const Camera& c = scene.camera;
   fmt::print("scene       {}\n", scene.source);
   fmt::print("image       {}x{}, max depth {}, background ({}, {}, {})\n", scene.settings.width,
@@ -204,8 +194,9 @@ int run_info(const std::string& scene_path, const GltfOptions& gltf, const Scene
   fmt::print("graph       {} nodes, {} models\n", scene.nodes.size(), models);
   fmt::print("geometry    {} triangles, {} vertices, {} degenerate triangles dropped, {} spheres (exact)\n",
              flat.triangle_count(), flat.positions.size(), flat.degenerate_triangles_dropped, flat.spheres.size());
-  if (!flat.positions.empty() || !flat.spheres.empty())
-    fmt::print("bounds      ({:.7g}, {:.7g}, {:.7g}) .. ({:.7g}, {:.7g}, {:.7g})\n", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
+  if (!bounds.empty())
+    fmt::print("bounds      ({:.7g}, {:.7g}, {:.7g}) .. ({:.7g}, {:.7g}, {:.7g})\n", bounds.lo.x, bounds.lo.y,
+               bounds.lo.z, bounds.hi.x, bounds.hi.y, bounds.hi.z);
   fmt::print("materials   {}\n", scene.materials.size());
   for (const Material& m : scene.materials)
     fmt::print("  {:<16} diffuse ({}, {}, {}), specular ({}, {}, {}), shininess {}{}\n", m.name, m.diffuse.r,

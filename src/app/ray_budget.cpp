@@ -12,9 +12,6 @@ std::uint64_t at(const std::vector<std::uint64_t>& values, std::size_t index) {
   return index < values.size() ? values[index] : 0;
 }
 
-// Ticks of the whole render loop summed over threads; 0 when the render was not timed.
-double all_ticks(const RayCounts& rays) { return static_cast<double>(rays.loop_ticks); }
-
 // One budget line: rays traced, hits (when meaningful) and, when timed, share of the loop's ticks
 // and the same share of the render's wall-clock seconds.
 struct BudgetRow {
@@ -37,7 +34,10 @@ std::vector<BudgetRow> budget_rows(const RenderResult& result, const Scene& scen
   return rows;
 }
 
-double share(double ticks, const RayCounts& rays) { return all_ticks(rays) > 0.0 ? ticks / all_ticks(rays) : 0.0; }
+// Fraction of the timed pixels' ticks; 0 when the render was not timed.
+double share(double ticks, const RayCounts& rays) {
+  return rays.loop_ticks > 0 ? ticks / double(rays.loop_ticks) : 0.0;
+}
 
 }  // namespace
 
@@ -102,7 +102,7 @@ nlohmann::ordered_json ray_budget_json(const RenderResult& result, const Scene& 
   json["shadow"] = shadow;
   json["reflection"] = reflection;
   if (timed) {
-    const double rest = std::max(0.0, all_ticks(rays) - query_ticks);
+    const double rest = std::max(0.0, double(rays.loop_ticks) - query_ticks);
     json["shading"] = {{"time_s", share(rest, rays) * result.seconds}, {"share", share(rest, rays)}};
   }
   nlohmann::ordered_json skipped;
@@ -125,7 +125,7 @@ std::string explain_render(const RenderResult& result, const Scene& scene) {
                         row.hits ? fmt::to_string(*row.hits) : "-", share(row.ticks, rays) * result.seconds,
                         100.0 * share(row.ticks, rays));
   }
-  const double rest = std::max(0.0, all_ticks(rays) - query_ticks);
+  const double rest = std::max(0.0, double(rays.loop_ticks) - query_ticks);
   text += fmt::format("  {:<20} {:>14} {:>14} {:>9.3f} {:>6.1f}%\n", "shading, camera setup", "-", "-",
                       share(rest, rays) * result.seconds, 100.0 * share(rest, rays));
   text += fmt::format("  {:<20} {:>14}\n", "traced", rays.total());

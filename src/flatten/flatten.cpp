@@ -105,6 +105,19 @@ void sphere_bounds(const FlatSphere& sphere, Vec3d& lower, Vec3d& upper) {
   upper = centre + half;
 }
 
+Bounds3d flat_bounds(const FlatScene& flat) {
+  Bounds3d bounds;
+  for (const Vec3u& tri : flat.triangles)
+    for (std::uint32_t index : {tri.x, tri.y, tri.z}) bounds.extend(Vec3d(flat.positions[index]));
+  for (const FlatSphere& sphere : flat.spheres) {
+    Vec3d lower, upper;
+    sphere_bounds(sphere, lower, upper);
+    bounds.extend(lower);
+    bounds.extend(upper);
+  }
+  return bounds;
+}
+
 FlatScene flatten_scene(const Scene& scene, const FlattenOptions& options) {
   FlatScene flat;
   if (scene.nodes.empty()) return flat;

@@ -45,14 +45,26 @@ struct Rendered {
   std::uint64_t rays = 0;
 };
 
-Rendered render_with(const Scene& base, const RenderConfig& config, int threads) {
-  Scene scene = base;
-  scene.settings.max_depth = config.max_depth;
+// A scene prepared for one configuration: its max depth set and flattened (sphere tessellation),
+// once per sweep point rather than once per timed run.
+struct Prepared {
+  Scene scene;
+  FlatScene flat;
+};
+
+Prepared prepare(const Scene& base, const RenderConfig& config) {
+  Prepared prepared{base, {}};
+  prepared.scene.settings.max_depth = config.max_depth;
   FlattenOptions flatten_options;
   flatten_options.sphere_tessellation = config.sphere_tessellation;
-  const FlatScene flat = flatten_scene(scene, flatten_options);
+  prepared.flat = flatten_scene(prepared.scene, flatten_options);
+  return prepared;
+}
+
+// Builds the Embree scene and renders once, timing both.
+Rendered render_with(const Prepared& prepared, const RenderConfig& config, int threads) {
   const auto start = std::chrono::steady_clock::now();
-  const std::unique_ptr<Accel> accel = build_accel(AccelKind::embree, flat, config.accel);
+  const std::unique_ptr<Accel> accel = build_accel(AccelKind::embree, prepared.flat, config.accel);
   Rendered rendered;
   rendered.build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   RenderOptions options;
@@ -60,7 +72,7 @@ Rendered render_with(const Scene& base, const RenderConfig& config, int threads)
   options.samples_per_pixel = config.spp;
   options.ray_offset = config.ray_offset;
   options.effects = config.effects;
-  RenderResult result = render_image(scene, flat, *accel, options);
+  RenderResult result = render_image(prepared.scene, prepared.flat, *accel, options);
   rendered.image = std::move(result.image);
   rendered.render_s = result.seconds;
   rendered.rays = result.rays.total();
@@ -104,8 +116,11 @@ int run_accuracy(const AccuracyArgs& args) {
                "shares the truth's samples and its error is not meaningful\n", args.truth_spp, kSppValues.back());
   fmt::print(stderr, "rt-perf: {} at {}x{}: ground truth at {} spp, depth {}\n", scene.source, scene.settings.width,
              scene.settings.height, args.truth_spp, std::max(scene_depth, args.truth_depth));
-  const Rendered truth_many = render_with(scene, truth_config(scene_depth, args.truth_depth, args.truth_spp), args.threads);
-  const Rendered truth_one = render_with(scene, truth_config(scene_depth, args.truth_depth, 1), args.threads);
+  const RenderConfig truth_many_config = truth_config(scene_depth, args.truth_depth, args.truth_spp);
+  const RenderConfig truth_one_config = truth_config(scene_depth, args.truth_depth, 1);
+  const Prepared truth_scene = prepare(scene, truth_many_config);
+  const Rendered truth_many = render_with(truth_scene, truth_many_config, args.threads);
+  const Rendered truth_one = render_with(truth_scene, truth_one_config, args.threads);
   fmt::print(stderr, "rt-perf: ground truths took {:.2f} s and {:.2f} s\n", truth_many.render_s, truth_one.render_s);
   write_image(truth_many.image, (fs::path(args.out) / "truth.exr").string());
   write_image(truth_many.image, (fs::path(args.out) / "truth.png").string());
@@ -116,9 +131,10 @@ int run_accuracy(const AccuracyArgs& args) {
     Measurement m;
     m.point = point;
     std::vector<double> times, builds;
+    const Prepared prepared = prepare(scene, point.config);
     Rendered last;
     for (int run = 0; run < args.runs; ++run) {
-      last = render_with(scene, point.config, args.threads);
+      last = render_with(prepared, point.config, args.threads);
       times.push_back(last.render_s);
       builds.push_back(last.build_s);
     }

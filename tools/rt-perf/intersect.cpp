@@ -26,23 +26,6 @@
 
 namespace rt::perf {
 
-Bounds scene_bounds(const FlatScene& flat) {
-  Vec3d lower(std::numeric_limits<double>::infinity()), upper(-std::numeric_limits<double>::infinity());
-  for (const Vec3u& tri : flat.triangles)
-    for (std::uint32_t index : {tri.x, tri.y, tri.z}) {
-      lower = glm::min(lower, Vec3d(flat.positions[index]));
-      upper = glm::max(upper, Vec3d(flat.positions[index]));
-    }
-  for (const FlatSphere& sphere : flat.spheres) {
-    Vec3d lo, hi;
-    sphere_bounds(sphere, lo, hi);
-    lower = glm::min(lower, lo);
-    upper = glm::max(upper, hi);
-  }
-  if (!(lower.x <= upper.x)) return {};
-  return {lower, upper};
-}
-
 std::vector<Ray> make_camera_rays(const Scene& scene, int width, int height) {
   const CameraFrame frame = make_camera_frame(scene.camera, width, height, scene.source);
   std::vector<Ray> rays;
@@ -88,13 +71,14 @@ std::vector<Ray> make_shadow_rays(const Scene& scene, const FlatScene& flat, con
   return rays;
 }
 
-std::vector<Ray> make_incoherent_rays(const Bounds& bounds, std::size_t count, std::uint64_t seed) {
+std::vector<Ray> make_incoherent_rays(const Bounds3d& box, std::size_t count, std::uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const Vec3d lower = box.empty() ? Vec3d(0.0) : box.lo, upper = box.empty() ? Vec3d(0.0) : box.hi;
   std::vector<Ray> rays(count);
   for (Ray& ray : rays) {
     Vec3d origin;
-    for (int k = 0; k < 3; ++k) origin[k] = bounds.lower[k] + unit(rng) * (bounds.upper[k] - bounds.lower[k]);
+    for (int k = 0; k < 3; ++k) origin[k] = lower[k] + unit(rng) * (upper[k] - lower[k]);
     // Uniform on the sphere: z uniform in [-1, 1] (Archimedes), azimuth uniform.
     const double z = 2.0 * unit(rng) - 1.0;
     const double phi = 2.0 * std::numbers::pi * unit(rng);
@@ -400,7 +384,7 @@ class Runner {
     const std::unique_ptr<Accel> reference = build_accel(AccelKind::reference, flat);
     const std::vector<Ray> camera = make_camera_rays(scene, o_.width, o_.height);
     const std::vector<Ray> shadow = make_shadow_rays(scene, flat, embree, camera);
-    const std::vector<Ray> incoherent = make_incoherent_rays(scene_bounds(flat), o_.rays, kIncoherentSeed);
+    const std::vector<Ray> incoherent = make_incoherent_rays(flat_bounds(flat), o_.rays, kIncoherentSeed);
 
     fmt::print("\n### Throughput and agreement\n\n"
                "| rays | count | Embree Mrays/s | reference rays | reference Mrays/s | Embree / reference | "
@@ -552,7 +536,7 @@ class Runner {
       const auto [build, memory] = time_build(flat, AccelOptions{});
       const EmbreeAccel embree(flat, AccelOptions{});
       const std::unique_ptr<Accel> reference = build_accel(AccelKind::reference, flat);
-      const std::vector<Ray> rays = make_incoherent_rays(scene_bounds(flat), o_.rays, kIncoherentSeed);
+      const std::vector<Ray> rays = make_incoherent_rays(flat_bounds(flat), o_.rays, kIncoherentSeed);
       std::vector<Hit> embree_hits, reference_hits;
       const Timing embree_timing = time_intersect(embree, rays, o_.runs, embree_hits);
       const ReferenceRun ref = run_reference(rays, [&](std::span<const Ray> set, int runs) {

@@ -21,13 +21,6 @@ namespace rt::perf {
 // returns the exit status.
 std::function<int()> add_intersect_command(CLI::App& app);
 
-// World-space axis-aligned bounds (double) of all triangles and spheres; (0, 0, 0) for both
-// corners when the scene has no primitive.
-struct Bounds {
-  Vec3d lower{0.0}, upper{0.0};
-};
-Bounds scene_bounds(const FlatScene& flat);
-
 // The camera's rays through the centres of a width x height pixel grid, row-major from the top-left
 // pixel (rt::ray_through_pixel). Throws InputError if the camera or the size is unusable.
 std::vector<Ray> make_camera_rays(const Scene& scene, int width, int height);
@@ -38,9 +31,10 @@ std::vector<Ray> make_camera_rays(const Scene& scene, int width, int height);
 std::vector<Ray> make_shadow_rays(const Scene& scene, const FlatScene& flat, const Accel& accel,
                                   std::span<const Ray> camera_rays);
 
-// `count` rays with origins uniform in `bounds` and unit directions uniform on the sphere, drawn
-// from std::mt19937_64 seeded with `seed`: the same rays for the same seed. tnear 0, tfar infinite.
-std::vector<Ray> make_incoherent_rays(const Bounds& bounds, std::size_t count, std::uint64_t seed);
+// `count` rays with origins uniform in `bounds` (world space; the origin when empty) and unit
+// directions uniform on the sphere, drawn from std::mt19937_64 seeded with `seed`: the same rays
+// for the same seed. tnear 0, tfar infinite.
+std::vector<Ray> make_incoherent_rays(const Bounds3d& bounds, std::size_t count, std::uint64_t seed);
 
 // Every `rays.size() / count`-th ray, spread evenly over the set (all of them when count >= size).
 std::vector<std::size_t> spread_indices(std::size_t size, std::size_t count);

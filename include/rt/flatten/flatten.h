@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "rt/core/math.h"
+#include "rt/scene/framing.h"
 #include "rt/scene/scene.h"
 
 namespace rt {
@@ -45,6 +46,10 @@ struct FlatScene {
     return is_sphere(primitive) ? sphere_of(primitive).material : material_ids[primitive];
   }
 };
+
+// World-space axis-aligned bounds (double) of the triangles' vertices and the spheres; empty()
+// when the scene has no primitive.
+Bounds3d flat_bounds(const FlatScene& flat);
 
 // How flatten_scene treats spheres: 0 keeps them analytic; N >= 3 tessellates every sphere into a
 // UV sphere of N slices and max(2, N / 2) stacks (to compare against the exact quadric).
