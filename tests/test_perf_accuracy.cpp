@@ -117,6 +117,28 @@ TEST_CASE("accuracy CSV and Markdown rows carry every column", "[perf]") {
   CHECK(std::count(table.begin(), table.end(), '\n') == 4);  // header, rule, two rows
 }
 
+TEST_CASE("fit_spp_slope recovers a power law from the points the truth does not bias", "[perf]") {
+  std::vector<rt::perf::Measurement> points;
+  for (const rt::perf::SweepPoint& point : rt::perf::plan_sweep({"spp", "max_depth"}, 5, false)) {
+    rt::perf::Measurement m;
+    m.point = point;
+    // RMSE = 0.02 spp^-0.75 on the spp points; the max_depth points must be ignored.
+    m.error.rmse = point.knob == "spp" ? 0.02 * std::pow(double(point.config.spp), -0.75) : 1.0;
+    points.push_back(m);
+  }
+  // spp 64 (with a 256-spp truth) is left out: make it an outlier to prove it.
+  for (rt::perf::Measurement& m : points)
+    if (m.point.knob == "spp" && m.point.config.spp == 64) m.error.rmse = 1e-9;
+  REQUIRE(rt::perf::fit_spp_slope(points, 256).has_value());
+  CHECK(*rt::perf::fit_spp_slope(points, 256) == Approx(-0.75).epsilon(1e-12));
+  // A 16-spp truth leaves only spp 1: no fit.
+  CHECK_FALSE(rt::perf::fit_spp_slope(points, 16).has_value());
+  // An exact match (RMSE 0) cannot go on a log scale and is skipped.
+  for (rt::perf::Measurement& m : points)
+    if (m.point.knob == "spp" && m.point.config.spp == 4) m.error.rmse = 0.0;
+  CHECK(*rt::perf::fit_spp_slope(points, 256) == Approx(-0.75).epsilon(1e-12));
+}
+
 TEST_CASE("rt-perf accuracy writes the CSV, the table and the truth, bad arguments are usage errors", "[perf]") {
   rt_test::TempDir dir;
   const rt_test::RtRun run = rt_test::run_in(

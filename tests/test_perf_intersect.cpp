@@ -96,7 +96,7 @@ TEST_CASE("intersect: Embree and the reference agree on the default scene's came
 
   // compare_hits counts what differs.
   std::vector<rt::Hit> altered = reference_hits;
-  std::size_t changed_t = 0, changed_primitive = 0;
+  std::size_t changed_t = 0, changed_primitive = 0, tied = 0;
   for (rt::Hit& hit : altered) {
     if (!hit.found()) continue;
     if (changed_t < 3) {
@@ -105,11 +105,15 @@ TEST_CASE("intersect: Embree and the reference agree on the default scene's came
     } else if (changed_primitive < 2) {
       hit = rt::Hit{};
       ++changed_primitive;
+    } else if (tied < 4) {
+      hit.primitive += 1;  // another triangle at the same t: a tie, not a disagreement in t
+      ++tied;
     }
   }
   const rt::perf::Agreement counted = rt::perf::compare_hits(embree_hits, altered);
-  CHECK(counted.same_hit == camera.size() - changed_primitive);
+  CHECK(counted.same_hit == camera.size() - changed_primitive - tied);
   CHECK(counted.t_mismatches == changed_t);
+  CHECK(counted.ties == tied);
 }
 
 TEST_CASE("intersect: the reference budget keeps, reduces or skips", "[perf]") {

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <numeric>
 #include <optional>
 #include <stdexcept>
 
@@ -159,8 +160,15 @@ int run_accuracy(const AccuracyArgs& args) {
       "spp sweep, 1 spp for the others.\n\n",
       scene.source, scene.settings.width, scene.settings.height, args.runs,
       args.threads > 0 ? fmt::to_string(args.threads) : "all", std::max(scene_depth, args.truth_depth), args.truth_spp);
-  write_text_file_atomically((fs::path(args.out) / "accuracy.md").string(), header + markdown_table(measurements));
-  fmt::print("{}{}", header, markdown_table(measurements));
+  std::string summary;
+  if (const std::optional<double> slope = fit_spp_slope(measurements, args.truth_spp))
+    summary = fmt::format(
+        "\nError against samples per pixel: RMSE ~ spp^{:.2f} (least-squares fit of log RMSE on log spp over spp <= "
+        "{}, where the truth's own sampling error is negligible; plain Monte Carlo gives -0.50).\n",
+        *slope, args.truth_spp / 16);
+  write_text_file_atomically((fs::path(args.out) / "accuracy.md").string(),
+                             header + markdown_table(measurements) + summary);
+  fmt::print("{}{}{}", header, markdown_table(measurements), summary);
 
   if (args.plots) {
     // Debian's interpreter, where install-deps puts matplotlib, before whatever python3 is on PATH.
@@ -267,6 +275,26 @@ std::string markdown_table(const std::vector<Measurement>& measurements) {
                          m.time_min, m.time_max, m.build_median, m.rays, m.error.rmse, m.error.psnr, m.error.max_abs,
                          m.error.pct_over_1_255);
   return table;
+}
+
+std::optional<double> fit_spp_slope(const std::vector<Measurement>& measurements, int truth_spp) {
+  std::vector<double> xs, ys;
+  for (const Measurement& m : measurements)
+    if (m.point.knob == "spp" && m.point.config.spp * 16 <= truth_spp && m.error.rmse > 0.0) {
+      xs.push_back(std::log(double(m.point.config.spp)));
+      ys.push_back(std::log(m.error.rmse));
+    }
+  const double n = double(xs.size());
+  if (xs.size() < 2) return std::nullopt;
+  const double mean_x = std::accumulate(xs.begin(), xs.end(), 0.0) / n;
+  const double mean_y = std::accumulate(ys.begin(), ys.end(), 0.0) / n;
+  double sxy = 0.0, sxx = 0.0;
+  for (std::size_t i = 0; i < xs.size(); ++i) {
+    sxy += (xs[i] - mean_x) * (ys[i] - mean_y);
+    sxx += (xs[i] - mean_x) * (xs[i] - mean_x);
+  }
+  if (sxx == 0.0) return std::nullopt;
+  return sxy / sxx;
 }
 
 std::function<int()> add_accuracy_command(CLI::App& app) {

@@ -150,11 +150,15 @@ Agreement compare_hits(std::span<const Hit> a, std::span<const Hit> b) {
   Agreement agreement;
   agreement.rays = a.size();
   for (std::size_t i = 0; i < a.size(); ++i) {
-    if (a[i].primitive != b[i].primitive) continue;
-    ++agreement.same_hit;
-    if (!a[i].found()) continue;
+    const bool both_found = a[i].found() && b[i].found();
     const double ta = a[i].t, tb = b[i].t;
-    if (std::abs(ta - tb) > kTRelativeTolerance * std::max(std::abs(ta), std::abs(tb))) ++agreement.t_mismatches;
+    const bool same_t = both_found && std::abs(ta - tb) <= kTRelativeTolerance * std::max(std::abs(ta), std::abs(tb));
+    if (a[i].primitive != b[i].primitive) {
+      if (same_t) ++agreement.ties;
+      continue;
+    }
+    ++agreement.same_hit;
+    if (both_found && !same_t) ++agreement.t_mismatches;
   }
   return agreement;
 }
@@ -388,7 +392,7 @@ class Runner {
 
     fmt::print("\n### Throughput and agreement\n\n"
                "| rays | count | Embree Mrays/s | reference rays | reference Mrays/s | Embree / reference | "
-               "same hit | t off > 1e-4 rel |\n|---|---:|---:|---:|---:|---:|---:|---:|\n");
+               "same hit | other primitive, same t (tie) | t off > 1e-4 rel |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     std::vector<std::string> notes;
     throughput_row(path, fmt::format("camera {}x{}", o_.width, o_.height), "camera", embree, *reference, camera, true,
                    notes);
@@ -472,11 +476,12 @@ class Runner {
         has_reference && reference_timing.median_mrays_per_second() > 0.0
             ? embree_timing.median_mrays_per_second() / reference_timing.median_mrays_per_second()
             : 0.0;
-    fmt::print("| {} | {} | {} | {} | {} | {} | {} | {} |\n", label, rays.size(),
+    fmt::print("| {} | {} | {} | {} | {} | {} | {} | {} | {} |\n", label, rays.size(),
                rays.empty() ? "-" : mrays_cell(embree_timing),
                rays.empty() ? "-" : ref.plan.skipped ? "skipped" : fmt::format("{}", ref.indices.size()),
                has_reference ? mrays_cell(reference_timing) : "-", has_reference ? sig3(speedup) + "x" : "-",
                agreement ? fmt::format("{}/{}", agreement->same_hit, agreement->rays) : "-",
+               agreement && closest ? fmt::format("{}", agreement->ties) : "-",
                agreement && closest ? fmt::format("{}", agreement->t_mismatches) : "-");
 
     const std::string options = fmt::format("threads={}", threads_);
@@ -489,9 +494,12 @@ class Runner {
     if (agreement) {
       add({path, "agreement_" + kind + (closest ? "_same_primitive" : "_same_occluded"), "embree-vs-reference", "",
            fmt::format("{}", agreement->rays), fmt::format("{}", agreement->same_hit), "", "", "rays", note});
-      if (closest)
+      if (closest) {
         add({path, "agreement_" + kind + "_t_off_1e-4_relative", "embree-vs-reference", "",
              fmt::format("{}", agreement->rays), fmt::format("{}", agreement->t_mismatches), "", "", "rays", note});
+        add({path, "agreement_" + kind + "_tie_other_primitive", "embree-vs-reference", "",
+             fmt::format("{}", agreement->rays), fmt::format("{}", agreement->ties), "", "", "rays", note});
+      }
     }
   }
 

@@ -58,11 +58,14 @@ Timing time_occluded(const Accel& accel, std::span<const Ray> rays, int runs, st
 
 // Agreement of two intersectors' answers on the same rays. same_hit: both miss, or both hit the same
 // primitive (for occlusion: the same occluded answer). t_mismatches: rays hitting the same primitive
-// whose t differ by more than `kTRelativeTolerance` of the larger |t|.
+// whose t differ by more than `kTRelativeTolerance` of the larger |t|. ties: rays where both hit
+// but different primitives at t within that tolerance (a shared edge, coplanar or interpenetrating
+// faces: both answers are valid), counted apart from real disagreements.
 struct Agreement {
   std::size_t rays = 0;
   std::size_t same_hit = 0;
   std::size_t t_mismatches = 0;
+  std::size_t ties = 0;
 };
 inline constexpr double kTRelativeTolerance = 1e-4;
 Agreement compare_hits(std::span<const Hit> a, std::span<const Hit> b);
