@@ -11,6 +11,7 @@
 
 #include "rt/accel/reference_accel.h"
 #include "rt/core/error.h"
+#include "rt/core/memory.h"
 
 namespace rt {
 
@@ -227,12 +228,22 @@ struct EmbreeAccel::Impl {
   std::mutex error_mutex;
   std::string first_error;  // recorded by the callback; never thrown across Embree's frames
   std::atomic<std::int64_t> memory_bytes{0};  // net bytes the device allocated (see memory_bytes())
+  std::int64_t memory_budget = 0;             // available_memory_bytes() when the build began
+  std::atomic<std::int64_t> refused_bytes{0}; // the first allocation refused, 0 if none
 
-  // Embree may call this from several threads: positive bytes before an allocation, negative after
-  // a free (or to undo a failed allocation). Returning true lets the allocation proceed.
-  static bool on_memory(void* user, ssize_t bytes, bool /*post*/) {
-    static_cast<Impl*>(user)->memory_bytes.fetch_add(bytes, std::memory_order_relaxed);
-    return true;
+  // Embree may call this from several threads: positive bytes for an allocation, negative for a
+  // free. Refusing (false) an allocation that would exceed the budget makes Embree cancel the build
+  // with RTC_ERROR_OUT_OF_MEMORY. A refusal before the allocation (post == false) is not counted,
+  // as the allocation never happens; one after it is (Embree will free the block), as its manual
+  // page asks.
+  static bool on_memory(void* user, ssize_t bytes, bool post) {
+    auto* self = static_cast<Impl*>(user);
+    const std::int64_t total = self->memory_bytes.fetch_add(bytes, std::memory_order_relaxed) + bytes;
+    if (bytes <= 0 || total <= self->memory_budget) return true;
+    std::int64_t none = 0;
+    self->refused_bytes.compare_exchange_strong(none, bytes);
+    if (!post) self->memory_bytes.fetch_sub(bytes, std::memory_order_relaxed);
+    return false;
   }
 
   static void on_error(void* user, RTCError code, const char* message) {
@@ -244,6 +255,12 @@ struct EmbreeAccel::Impl {
 
   void throw_if_failed(const char* step) {
     std::lock_guard lock(error_mutex);
+    if (const std::int64_t refused = refused_bytes.load(); refused > 0)
+      throw RuntimeError(fmt::format("{} failed: out of memory: Embree asked for {} more with {} in use; {} were "
+                                     "available when the build began",
+                                     step, format_bytes(std::uint64_t(refused)),
+                                     format_bytes(std::uint64_t(std::max<std::int64_t>(0, memory_bytes.load()))),
+                                     format_bytes(std::uint64_t(memory_budget))));
     if (!first_error.empty()) throw RuntimeError(fmt::format("{} failed: {}", step, first_error));
   }
 
@@ -278,6 +295,7 @@ EmbreeAccel::EmbreeAccel(const FlatScene& flat, const AccelOptions& options) : i
   if (!impl_->device)
     throw RuntimeError(fmt::format("creating the Embree device failed: {}", error_name(rtcGetDeviceError(nullptr))));
   rtcSetDeviceErrorFunction(impl_->device, &Impl::on_error, impl_.get());
+  impl_->memory_budget = std::int64_t(std::min<std::uint64_t>(available_memory_bytes(), INT64_MAX));
   rtcSetDeviceMemoryMonitorFunction(impl_->device, &Impl::on_memory, impl_.get());
 
   impl_->scene = rtcNewScene(impl_->device);

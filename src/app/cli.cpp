@@ -1,6 +1,8 @@
 #include "rt/app/cli.h"
 
+#include <atomic>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <new>
@@ -16,6 +18,7 @@
 #include "rt/app/progress.h"
 #include "rt/app/scene_options.h"
 #include "rt/core/error.h"
+#include "rt/core/memory.h"
 #include "rt/flatten/flatten.h"
 #include "rt/io/atomic_file.h"
 #include "rt/io/image_io.h"
@@ -44,9 +47,12 @@ struct RenderArgs {
   int sphere_tessellation = 0;
   std::string ray_offset = "robust";
   int threads = 0;
+  std::uint64_t memory_limit = 0;  // bytes; 0: what the machine has available
   int spp = 1;
   std::string stats_path;
   bool explain = false;
+  bool partial_output = false;      // on SIGINT/SIGTERM, write the finished tiles to <stem>.partial<ext>
+  std::vector<int> debug_pixel;     // x y: trace that pixel's ray tree instead of rendering
   EffectsOptions effects;
   bool quiet = false;
   GltfOptions gltf;
@@ -80,8 +86,48 @@ void warn_about_dropped_triangles(const Scene& scene, const FlatScene& flat, boo
                flat.degenerate_triangles_dropped);
 }
 
+// SIGINT and SIGTERM during the render loop: the handler only records the signal; the loop polls
+// the flag between rows of pixels and stops (render_image, RenderOptions::cancel).
+std::atomic<bool> interrupted{false};
+volatile std::sig_atomic_t interrupting_signal = 0;
+
+extern "C" void on_interrupt(int signal) {
+  interrupting_signal = signal;
+  interrupted.store(true, std::memory_order_relaxed);
+}
+
+// Installs on_interrupt for SIGINT and SIGTERM for its lifetime, then restores what was there.
+class ScopedInterruptHandler {
+ public:
+  ScopedInterruptHandler() {
+    interrupted.store(false);
+    interrupting_signal = 0;
+    struct sigaction action {};
+    action.sa_handler = &on_interrupt;
+    sigemptyset(&action.sa_mask);
+    sigaction(SIGINT, &action, &previous_int_);
+    sigaction(SIGTERM, &action, &previous_term_);
+  }
+  ~ScopedInterruptHandler() {
+    sigaction(SIGINT, &previous_int_, nullptr);
+    sigaction(SIGTERM, &previous_term_, nullptr);
+  }
+  ScopedInterruptHandler(const ScopedInterruptHandler&) = delete;
+  ScopedInterruptHandler& operator=(const ScopedInterruptHandler&) = delete;
+
+ private:
+  struct sigaction previous_int_ {}, previous_term_ {};
+};
+
+// "out.png" -> "out.partial.png": where --partial-output puts the finished tiles of an interrupted render.
+std::string partial_output_path(const std::string& output) {
+  const std::filesystem::path path(output);
+  return (path.parent_path() / (path.stem().string() + ".partial" + path.extension().string())).string();
+}
+
 int run_render(const RenderArgs& args) {
   const auto start = Clock::now();
+  set_memory_limit(args.memory_limit);
   const int threads = args.threads > 0 ? args.threads : tbb::info::default_concurrency();
   // Limits Embree's BVH build (TBB tasks) as well as the render loop.
   tbb::global_control thread_limit(tbb::global_control::max_allowed_parallelism, threads);
@@ -98,11 +144,11 @@ int run_render(const RenderArgs& args) {
   if (args.height) scene.settings.height = *args.height;
   if (args.max_depth) scene.settings.max_depth = *args.max_depth;
   apply_scene_options(args.scene, report, scene);
-  if (!args.quiet) print_notices(args.scene, report, scene);
   validate_scene(scene);
   const std::string output = args.output.empty() ? default_output(scene, args.scene_path) : args.output;
   check_output_path(output);  // fail before rendering, not after
   if (!args.stats_path.empty()) check_parent_directory_writable(args.stats_path);
+  check_render_memory(scene);
   const double load_s = seconds_since(start);
 
   auto phase_start = Clock::now();
@@ -110,22 +156,50 @@ int run_render(const RenderArgs& args) {
   flatten_options.sphere_tessellation = args.sphere_tessellation;
   const FlatScene flat = flatten_scene(scene, flatten_options);
   const double flatten_s = seconds_since(phase_start);
+  // Notes and warnings only once the scene has loaded and flattened: a failing run prints one line.
+  if (!args.quiet) print_notices(args.scene, report, scene);
   warn_about_dropped_triangles(scene, flat, args.quiet);
 
   phase_start = Clock::now();
   const std::unique_ptr<Accel> accel = build_accel(accel_kind, flat, accel_options);
   const double build_s = seconds_since(phase_start);
 
-  ProgressBar progress("rendering", !args.quiet);
   RenderOptions options;
   options.threads = threads;
   options.samples_per_pixel = args.spp;
   options.ray_offset = ray_offset;
   options.effects = args.effects;
+  if (!args.debug_pixel.empty()) {
+    for (const std::string& line : trace_pixel(scene, flat, *accel, options, args.debug_pixel[0], args.debug_pixel[1]))
+      fmt::print("{}\n", line);
+    return 0;
+  }
   options.time_queries = args.explain || !args.stats_path.empty();
+  ProgressBar progress("rendering", !args.quiet);
   options.on_progress = [&](double fraction) { progress.update(fraction); };
+  const ScopedInterruptHandler interrupt_handler;
+  options.cancel = &interrupted;
   const RenderResult result = render_image(scene, flat, *accel, options);
   progress.finish();
+  if (result.cancelled) {
+    const int signal = interrupting_signal;
+    const std::string what = fmt::format("rt: interrupted by {} after {} of {} tiles", signal == SIGTERM ? "SIGTERM" : "SIGINT",
+                                         result.tiles_finished(), result.tile_count);
+    if (args.partial_output) {
+      const std::string partial = partial_output_path(output);
+      write_image(result.image, partial);
+      fmt::print(stderr, "{}; the finished tiles are in {} (unfinished tiles black); {} not written\n", what, partial,
+                 output);
+    } else {
+      fmt::print(stderr, "{}; nothing written (--partial-output keeps the finished tiles)\n", what);
+    }
+    return 128 + (signal == SIGTERM ? SIGTERM : SIGINT);
+  }
+  if (result.non_finite_samples > 0 && !args.quiet)
+    fmt::print(stderr, "rt: warning: {} sample(s) were NaN or infinite and were replaced by black; the first in pixel "
+               "({}, {}): see its ray tree with --debug-pixel {} {}\n", result.non_finite_samples,
+               result.first_non_finite_pixel->first, result.first_non_finite_pixel->second,
+               result.first_non_finite_pixel->first, result.first_non_finite_pixel->second);
 
   phase_start = Clock::now();
   write_image(result.image, output);
@@ -151,6 +225,7 @@ int run_render(const RenderArgs& args) {
     stats["spheres"] = flat.spheres.size();
     stats["sphere_tessellation"] = args.sphere_tessellation;
     stats["degenerate_triangles_dropped"] = flat.degenerate_triangles_dropped;
+    stats["non_finite_samples"] = result.non_finite_samples;
     stats["lights"] = scene.lights.size();
     stats["rays"] = {{"camera", result.rays.camera},
                      {"shadow", result.rays.shadow},
@@ -178,9 +253,9 @@ int run_info(const std::string& scene_path, const GltfOptions& gltf, const Scene
   LoadReport report;
   Scene scene = load_scene_or_default(scene_path, gltf, &report);
   apply_scene_options(scene_options, report, scene);
-  print_notices(scene_options, report, scene);
   validate_scene(scene);
   const FlatScene flat = flatten_scene(scene);
+  print_notices(scene_options, report, scene);
   std::size_t models = 0;
   for (const Node& node : scene.nodes) models += node.models.size();
   const Bounds3d bounds = flat_bounds(flat);
@@ -283,8 +358,24 @@ int run_cli(int argc, char** argv) {
   render->add_option("--threads", render_args.threads, "Worker threads (0 = all cores)")
       ->check(CLI::Range(0, 1024))
       ->capture_default_str();
+  render->add_option_function<std::string>(
+            "--memory-limit",
+            [&render_args](const std::string& text) {
+              const std::optional<std::uint64_t> bytes = parse_bytes(text);
+              if (!bytes || *bytes == 0) throw CLI::ValidationError("--memory-limit", "expected a size such as 512M or 8G");
+              render_args.memory_limit = *bytes;
+            },
+            "Refuse (with a clear error, before allocating) work that needs more memory than this, e.g. 8G; "
+            "default: what the machine has available")
+      ->type_name("SIZE");
   render->add_option("--stats", render_args.stats_path,
                      "Write ray counts, the effects plan, the ray budget and phase timings as JSON to this file");
+  render->add_flag("--partial-output", render_args.partial_output,
+                   "If interrupted (Ctrl-C, SIGTERM), write the finished tiles to <output stem>.partial<ext>");
+  render->add_option("--debug-pixel", render_args.debug_pixel,
+                     "Print the ray tree of pixel X Y (every ray, light and colour) instead of rendering")
+      ->expected(2)
+      ->type_name("X Y");
   render->add_flag("--explain", render_args.explain,
                    "Print the effects plan and the ray budget (rays, hits, time per effect, skipped rays) at the end");
   const auto add_effects_options = [](CLI::App* command, EffectsOptions& effects) {
@@ -325,14 +416,12 @@ int run_cli(int argc, char** argv) {
     if (*render) return run_render(render_args);
     if (*info) return run_info(info_path, info_gltf, info_scene, info_effects);
   } catch (const UsageError& error) {
-    fmt::print(stderr, "rt: error: {}\n", error.what());
+    fmt::print(stderr, "rt: error: {}\n", printable_line(error.what()));
     return 2;
-  } catch (const InputError& error) {
-    fmt::print(stderr, "rt: error: {}\n", error.what());
   } catch (const std::bad_alloc&) {
     fmt::print(stderr, "rt: error: out of memory\n");
-  } catch (const std::exception& error) {
-    fmt::print(stderr, "rt: error: {}\n", error.what());
+  } catch (const std::exception& error) {  // InputError, RuntimeError and anything else
+    fmt::print(stderr, "rt: error: {}\n", printable_line(error.what()));
   }
   return 1;
 }

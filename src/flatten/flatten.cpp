@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 
 #include "rt/core/error.h"
+#include "rt/core/memory.h"
 #include "rt/scene/shapes.h"
 
 namespace rt {
@@ -17,7 +18,6 @@ namespace {
 struct StackEntry {
   std::uint32_t node;
   Mat4d world_from_node;
-  std::size_t depth;  // number of ancestors; a path longer than the node count proves a cycle
 };
 
 bool finite(const Vec3f& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
@@ -131,20 +131,35 @@ FlatScene flatten_scene(const Scene& scene, const FlattenOptions& options) {
     unit_sphere_mesh = std::make_shared<const TriangleMesh>(
         make_sphere_mesh(1.0, options.sphere_tessellation, std::max(2, options.sphere_tessellation / 2)));
 
-  std::size_t vertex_total = 0, triangle_total = 0;  // reserve() hint; a node reached twice adds more
-  for (const Node& node : scene.nodes)
-    for (const Model& model : node.models) {
-      const TriangleMesh* mesh = model.mesh ? model.mesh.get() : unit_sphere_mesh.get();
-      if (!mesh) continue;
-      vertex_total += mesh->positions.size();
-      triangle_total += mesh->triangles.size();
-    }
+  // Exact sizes of the flattened buffers (every instance of every node), checked against the
+  // memory available before anything is allocated.
+  const auto mesh_of = [&](const Model& model) { return model.mesh ? model.mesh.get() : unit_sphere_mesh.get(); };
+  const std::uint64_t vertex_total = sum_over_instances(scene, [&](const Node& node) {
+    std::uint64_t n = 0;
+    for (const Model& model : node.models)
+      if (const TriangleMesh* mesh = mesh_of(model)) n += mesh->positions.size();
+    return n;
+  });
+  const std::uint64_t triangle_total = sum_over_instances(scene, [&](const Node& node) {
+    std::uint64_t n = 0;
+    for (const Model& model : node.models)
+      if (const TriangleMesh* mesh = mesh_of(model)) n += mesh->triangles.size();
+    return n;
+  });
+  const std::uint64_t bytes = vertex_total * (2 * sizeof(Vec3f) + sizeof(Vec2f)) +
+                              triangle_total * (sizeof(Vec3u) + sizeof(std::uint32_t));
+  if (const auto shortfall = memory_shortfall(bytes))
+    throw InputError(scene.source, "", fmt::format("flattening {} triangles and {} vertices (every instance) {}",
+                                                   triangle_total, vertex_total, *shortfall));
+  if (vertex_total >= 0xFFFFFFFFu)
+    throw InputError(scene.source, "", fmt::format("the scene expands to {} vertices; at most 2^32 - 2 are supported",
+                                                   vertex_total));
   flat.positions.reserve(vertex_total + 1);
   flat.normals.reserve(vertex_total);
   flat.triangles.reserve(triangle_total);
   flat.material_ids.reserve(triangle_total);
 
-  std::vector<StackEntry> stack{{scene.root, scene.nodes[scene.root].parent_from_node, 0}};
+  std::vector<StackEntry> stack{{scene.root, scene.nodes[scene.root].parent_from_node}};
   while (!stack.empty()) {
     const StackEntry entry = stack.back();
     stack.pop_back();
@@ -160,15 +175,11 @@ FlatScene flatten_scene(const Scene& scene, const FlattenOptions& options) {
       }
     }
     // Push in reverse so children are visited in file order (keeps triangle ids predictable).
-    for (auto child = node.children.rbegin(); child != node.children.rend(); ++child) {
-      if (entry.depth + 2 > scene.nodes.size())  // path of depth + 2 nodes must repeat one
-        throw InputError(scene.source, node_label(scene, *child), "node hierarchy contains a cycle");
-      stack.push_back({*child, entry.world_from_node * scene.nodes[*child].parent_from_node, entry.depth + 1});
-    }
+    // (No cycle is possible here: sum_over_instances above has already refused one.)
+    for (auto child = node.children.rbegin(); child != node.children.rend(); ++child)
+      stack.push_back({*child, entry.world_from_node * scene.nodes[*child].parent_from_node});
   }
   if (!flat.texcoords.empty()) flat.texcoords.resize(flat.positions.size(), Vec2f(0.0f));
-  if (flat.positions.size() >= 0xFFFFFFFFu)
-    throw InputError(scene.source, "", "scene has more than 2^32 - 1 vertices");
   // Keep one spare slot so Embree's 16-byte load of the last vertex stays inside the allocation.
   if (flat.positions.capacity() < flat.positions.size() + 1) flat.positions.reserve(flat.positions.size() + 1);
   return flat;

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <system_error>
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 #include <fmt/format.h>
 
@@ -73,20 +74,17 @@ void write_image(const Image& image, const std::string& path) {
     bytes = to_rgb8(image);
     data = bytes.data();
   }
-
-  const fs::path destination(path);
-  const fs::path temporary = temporary_sibling(destination);
-  const bool written = output->open(temporary.string(), spec) && output->write_image(spec.format, data) &&
-                       output->close();
-  std::error_code ignored;
-  if (!written) {
-    const std::string reason = output->geterror();
-    output.reset();
-    fs::remove(temporary, ignored);
-    throw RuntimeError(fmt::format("{}: cannot write image: {}", path, reason));
-  }
+  // Encoded in memory, then written with checked system calls: OIIO's file writers can miss a
+  // failed write (the PNG writer leaves a truncated file and reports success when the disk fills).
+  if (!output->supports("ioproxy"))
+    throw InputError(path, "", fmt::format("the '{}' writer cannot encode to memory", output->format_name()));
+  std::vector<unsigned char> encoded;
+  OIIO::Filesystem::IOVecOutput proxy(encoded);
+  output->set_ioproxy(&proxy);
+  if (!(output->open(path, spec) && output->write_image(spec.format, data) && output->close()))
+    throw RuntimeError(fmt::format("{}: cannot encode the image: {}", path, output->geterror()));
   output.reset();
-  commit_temporary(temporary, destination);
+  write_file_atomically(path, std::string_view(reinterpret_cast<const char*>(encoded.data()), encoded.size()));
 }
 
 Image read_image(const std::string& path) {

@@ -1,6 +1,7 @@
 #include "rt/io/load_gltf.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -17,6 +18,7 @@
 #include <tiny_gltf.h>
 
 #include "rt/core/error.h"
+#include "rt/core/memory.h"
 #include "rt/render/texture.h"
 
 namespace rt {
@@ -158,7 +160,7 @@ std::vector<double> GltfReader::read_accessor(int index, const std::string& wher
   if (size == 0) fail(child(at, "componentType"), fmt::format("invalid component type {}", accessor.componentType));
   if (tinygltf::GetNumComponentsInType(static_cast<std::uint32_t>(accessor.type)) != components)
     fail(child(at, "type"), fmt::format("expected {} components per element (used by {})", components, where));
-  if (accessor.count > kMaxAccessorCount) fail(child(at, "count"), fmt::format("count {} is too large", accessor.count));
+  if (accessor.count > kMaxAccessorCount) fail(child(at, "count"), fmt::format("count {} exceeds the supported maximum {} (2^28)", accessor.count, kMaxAccessorCount));
   const std::size_t count = accessor.count, element_size = static_cast<std::size_t>(size * components);
 
   // Bytes [offset, offset + (n - 1) stride + element_size) of bufferView `view` must exist.
@@ -674,14 +676,19 @@ Scene GltfReader::read() {
   const std::vector<int> roots = scene_roots();
   for (int root : roots) scene.nodes[0].children.push_back(static_cast<std::uint32_t>(root) + 1);
 
-  // Walk the selected scene depth-first (explicit stack; a path longer than the node count is a
-  // cycle), attaching meshes and collecting camera and light placements and world bounds.
+  // Walk the selected scene depth-first (explicit stack), attaching meshes and collecting camera
+  // and light placements and world bounds. A node shared by several parents is visited once per
+  // path, so the walk is sized first: a few hundred bytes of glTF can instance a node 2^40 times.
+  const std::uint64_t instances = sum_over_instances(scene, [](const Node&) { return std::uint64_t(1); });
+  if (const auto shortfall = memory_shortfall(instances * 2 * sizeof(Placed)))
+    fail("/nodes", fmt::format("the node hierarchy expands to {} node instances (nodes shared by several parents); "
+                               "placing them {}", instances, *shortfall));
   std::vector<Placed> placed;
-  std::vector<std::pair<Placed, std::size_t>> stack;
+  std::vector<Placed> stack;
   for (auto it = roots.rbegin(); it != roots.rend(); ++it)
-    stack.push_back({{*it, scene.nodes[static_cast<std::size_t>(*it) + 1].parent_from_node}, 0});
+    stack.push_back({*it, scene.nodes[static_cast<std::size_t>(*it) + 1].parent_from_node});
   while (!stack.empty()) {
-    const auto [entry, depth] = stack.back();
+    const Placed entry = stack.back();
     stack.pop_back();
     placed.push_back(entry);
     const tinygltf::Node& source = gltf_.nodes[static_cast<std::size_t>(entry.node)];
@@ -697,11 +704,8 @@ Scene GltfReader::read() {
         }
     }
     if (source.skin >= 0 || !source.weights.empty()) count("skins and morph targets ignored (bind pose shown)");
-    for (auto c = source.children.rbegin(); c != source.children.rend(); ++c) {
-      if (depth + 1 >= gltf_.nodes.size())
-        fail(child(child("/nodes", static_cast<std::size_t>(entry.node)), "children"), "node hierarchy contains a cycle");
-      stack.push_back({{*c, entry.world_from_node * scene.nodes[static_cast<std::size_t>(*c) + 1].parent_from_node}, depth + 1});
-    }
+    for (auto c = source.children.rbegin(); c != source.children.rend(); ++c)
+      stack.push_back({*c, entry.world_from_node * scene.nodes[static_cast<std::size_t>(*c) + 1].parent_from_node});
   }
 
   read_camera(placed, scene);
@@ -737,6 +741,39 @@ InputError tinygltf_error(const std::string& path, const std::string& message) {
   return InputError(path, "", line);
 }
 
+// tinygltf answers every malformed GLB container with "Invalid glTF binary."; the container
+// (12-byte header, then 8-byte-headed chunks: JSON first, optionally BIN) is checked here first so
+// the message says what is wrong. Layout: glTF 2.0 specification, section 4.4 "Binary glTF Layout".
+void check_glb_container(const std::string& path, bool has_magic) {
+  std::ifstream in(path, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (bytes.empty()) throw InputError(path, "", "empty file");
+  if (!has_magic)
+    throw InputError(path, "", fmt::format("not a binary glTF: it starts with {}, not the magic 'glTF'",
+                                           printable_line(std::string_view(bytes).substr(0, 4))));
+  const auto u32 = [&](std::size_t offset) {
+    std::uint32_t value = 0;
+    for (int k = 3; k >= 0; --k) value = value << 8 | static_cast<unsigned char>(bytes[offset + std::size_t(k)]);
+    return value;
+  };
+  const std::size_t size = bytes.size();
+  if (size < 20) throw InputError(path, "", fmt::format("truncated: {} bytes, shorter than the GLB header", size));
+  if (u32(4) != 2) throw InputError(path, "", fmt::format("GLB version {}; only version 2 is supported", u32(4)));
+  if (u32(8) != size)
+    throw InputError(path, "", fmt::format("the GLB header gives a length of {} bytes; the file has {}{}", u32(8), size,
+                                           u32(8) > size ? " (truncated?)" : ""));
+  std::size_t offset = 12;
+  for (int chunk = 0; offset < size; ++chunk) {
+    if (size - offset < 8) throw InputError(path, "", fmt::format("chunk {} header at byte {} is truncated", chunk, offset));
+    const std::uint64_t length = u32(offset), type = u32(offset + 4);
+    if (chunk == 0 && type != 0x4E4F534Au) throw InputError(path, "", "the first GLB chunk is not JSON");
+    if (length > size - offset - 8)
+      throw InputError(path, "", fmt::format("chunk {} ({} bytes from byte {}) runs past the end of the file ({} bytes)",
+                                             chunk, length, offset + 8, size));
+    offset += 8 + length;
+  }
+}
+
 }  // namespace
 
 Scene load_gltf_scene(const std::string& path, const GltfOptions& options, LoadReport* report) {
@@ -744,7 +781,11 @@ Scene load_gltf_scene(const std::string& path, const GltfOptions& options, LoadR
   if (!fs::is_regular_file(path, error)) throw InputError(path, "", fs::exists(path, error) ? "not a regular file" : "no such file");
   char magic[4] = {};
   std::ifstream(path, std::ios::binary).read(magic, 4);
-  const bool binary = std::memcmp(magic, "glTF", 4) == 0;
+  const bool has_magic = std::memcmp(magic, "glTF", 4) == 0;
+  std::string extension = fs::path(path).extension().string();
+  for (char& c : extension) c = char(std::tolower(static_cast<unsigned char>(c)));
+  const bool binary = has_magic || extension == ".glb";
+  if (binary) check_glb_container(path, has_magic);
 
   tinygltf::TinyGLTF loader;
   EmbeddedImages embedded;

@@ -1,6 +1,8 @@
 #include "rt/io/load_obj.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -23,6 +25,39 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// tinyobjloader reads a number it cannot parse ("nan", "1e999", "abc") as 0 and carries on, and
+// skips lines it does not know, binary garbage included. So before tinyobj sees a file, every
+// statement below has its numbers checked here, and a control character (other than tab, CR and
+// form feed) anywhere marks the file as binary. Errors name the 1-based line.
+const std::set<std::string> kObjNumericKeywords{"v", "vn", "vt"};
+const std::set<std::string> kMtlNumericKeywords{"Ka", "Kd", "Ks", "Ke", "Tf", "Ns", "Ni", "d", "Tr", "illum"};
+
+void check_numbers(const std::string& path, std::istream& in, const std::set<std::string>& keywords) {
+  std::string line;
+  std::size_t number = 0;
+  while (std::getline(in, line)) {
+    ++number;
+    if (number == 1 && line.starts_with("\xEF\xBB\xBF")) line.erase(0, 3);  // UTF-8 byte order mark
+    for (unsigned char c : line)
+      if (c < 0x20 && c != '\t' && c != '\r' && c != '\f')
+        throw InputError(path, std::to_string(number),
+                         fmt::format("binary data (byte 0x{:02x}): not a text file", static_cast<unsigned>(c)));
+    std::istringstream tokens(line);
+    std::string keyword, token;
+    if (!(tokens >> keyword) || !keywords.contains(keyword)) continue;
+    while (tokens >> token) {
+      if (token.starts_with('#') || token == "spectral") break;  // a comment; a spectral curve file
+      if (token == "xyz" || token == "-halo") continue;          // MTL colour space and dissolve options
+      char* end = nullptr;
+      const double value = std::strtod(token.c_str(), &end);
+      if (end != token.c_str() + token.size())
+        throw InputError(path, std::to_string(number), fmt::format("'{}': '{}' is not a number", keyword, token));
+      if (!std::isfinite(value))
+        throw InputError(path, std::to_string(number), fmt::format("'{}': '{}' is not finite", keyword, token));
+    }
+  }
+}
+
 // Reads MTL libraries named by `mtllib` from the OBJ's directory and remembers those it cannot open.
 class MtlLibraryReader : public tinyobj::MaterialReader {
  public:
@@ -30,11 +65,15 @@ class MtlLibraryReader : public tinyobj::MaterialReader {
 
   bool operator()(const std::string& name, std::vector<tinyobj::material_t>* materials,
                   std::map<std::string, int>* material_map, std::string* warn, std::string* err) override {
-    std::ifstream in(directory_ / name);
+    const fs::path path = directory_ / name;
+    std::ifstream in(path, std::ios::binary);
     if (!in) {
       missing.push_back(name);
       return false;
     }
+    check_numbers(path.string(), in, kMtlNumericKeywords);
+    in.clear();
+    in.seekg(0);
     tinyobj::LoadMtl(material_map, materials, &in, warn, err);
     return true;
   }
@@ -111,6 +150,9 @@ ObjFile read_obj(const std::string& path) {
   if (!fs::is_regular_file(path)) throw InputError(path, "", "no such file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "", "cannot open file");
+  check_numbers(path, in, kObjNumericKeywords);
+  in.clear();
+  in.seekg(0);
   ObjFile obj;
   MtlLibraryReader mtl_reader(fs::path(path).parent_path());
   std::string warn, err;
@@ -125,8 +167,10 @@ ObjFile read_obj(const std::string& path) {
     if (unknown.insert((*it)[1].str()).second) obj.unknown_materials.push_back((*it)[1].str());
   obj.position_count = obj.attrib.vertices.size() / 3;
   obj.normal_count = obj.attrib.normals.size() / 3;
-  for (float value : obj.attrib.vertices)
-    if (!std::isfinite(value)) throw InputError(path, "", "a vertex position is not finite");
+  if (obj.shapes.empty() || std::all_of(obj.shapes.begin(), obj.shapes.end(), [](const tinyobj::shape_t& shape) {
+        return shape.mesh.num_face_vertices.empty();
+      }))
+    throw InputError(path, "", "no faces ('f' lines): nothing to render");
   return obj;
 }
 
@@ -354,10 +398,6 @@ Scene load_obj_scene(const std::string& path, LoadReport* report) {
       material.diffuse_texture = {};
     }
   }
-  std::size_t triangles = 0;
-  for (const Model& model : scene.nodes[0].models) triangles += model.mesh->triangles.size();
-  if (triangles == 0) r.warnings.push_back(fmt::format("{}: no faces: the image shows only the background", path));
-
   r.bounds = world_bounds(scene);
   r.view = choose_view(scene);
   r.camera_framed = true;

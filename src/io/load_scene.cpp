@@ -26,6 +26,8 @@ namespace {
 // Default tessellation of "sphere" geometry: 2 * 32 * 15 = 960 triangles.
 constexpr int kDefaultSphereSlices = 32;
 constexpr int kDefaultSphereStacks = 16;
+// Deepest node nesting read (levels below /nodes); deeper files are refused, not recursed into.
+constexpr std::size_t kMaxNodeDepth = 1024;
 
 // Walks a parsed document, naming every value by its JSON pointer (e.g. /nodes/2/translate) so
 // that each error can say exactly where it is.
@@ -56,7 +58,9 @@ class SceneReader {
   // The geometry of a model: Model::mesh or Model::sphere set, the material left to the caller.
   Model read_geometry(const json& value, const std::string& where);
   Mat4d read_transform(const json& node, const std::string& where) const;
-  std::uint32_t read_node(const json& value, const std::string& where, Scene& scene);
+  // `depth`: ancestors of the node, the root's children having none. Nodes are read recursively,
+  // so the depth is capped (kMaxNodeDepth) to keep a hostile file from exhausting the stack.
+  std::uint32_t read_node(const json& value, const std::string& where, Scene& scene, std::size_t depth);
 
   std::string path_;
   fs::path directory_;
@@ -273,6 +277,11 @@ Model SceneReader::read_geometry(const json& value, const std::string& where) {
     if (!value.contains("path")) fail(where, "missing key 'path'");
     const std::string relative = read_string(value["path"], child(where, "path"));
     const std::string resolved = (directory_ / relative).lexically_normal().string();
+    std::error_code error;
+    if (!fs::is_regular_file(resolved, error))
+      fail(child(where, "path"), fmt::format("{} '{}' (resolved to '{}')",
+                                             fs::exists(resolved, error) ? "not a regular file:" : "no such file:",
+                                             relative, resolved));
     auto& cached = obj_cache_[resolved];
     if (!cached) cached = std::make_shared<const TriangleMesh>(load_obj_mesh(resolved));
     return Model{cached};
@@ -318,7 +327,10 @@ Mat4d SceneReader::read_transform(const json& node, const std::string& where) co
   return m;
 }
 
-std::uint32_t SceneReader::read_node(const json& value, const std::string& where, Scene& scene) {
+std::uint32_t SceneReader::read_node(const json& value, const std::string& where, Scene& scene, std::size_t depth) {
+  if (depth >= kMaxNodeDepth)  // the path is thousands of characters long here: name its start only
+    fail(where.substr(0, where.find("/children")) + "/children/...",
+         fmt::format("node hierarchy deeper than {} levels", kMaxNodeDepth));
   require_object(value, where);
   check_keys(value, where, {"name", "translate", "rotate", "scale", "matrix", "models", "children"});
   Node node;
@@ -352,7 +364,7 @@ std::uint32_t SceneReader::read_node(const json& value, const std::string& where
     const std::string at = child(where, "children");
     const json& children = require_array(value["children"], at);
     for (std::size_t i = 0; i < children.size(); ++i) {
-      const std::uint32_t child_index = read_node(children[i], child(at, i), scene);
+      const std::uint32_t child_index = read_node(children[i], child(at, i), scene, depth + 1);
       scene.nodes[index].children.push_back(child_index);
     }
   }
@@ -388,7 +400,7 @@ Scene SceneReader::read(const json& document) {
   if (document.contains("nodes")) {
     const json& nodes = require_array(document["nodes"], "/nodes");
     for (std::size_t i = 0; i < nodes.size(); ++i) {
-      const std::uint32_t index = read_node(nodes[i], child("/nodes", i), scene);
+      const std::uint32_t index = read_node(nodes[i], child("/nodes", i), scene, 0);
       scene.nodes[0].children.push_back(index);
     }
   }

@@ -24,6 +24,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "rt/core/error.h"
+#include "rt/core/memory.h"
 #include "rt/scene/shapes.h"
 
 namespace rt {
@@ -206,7 +207,8 @@ std::size_t TestSceneParser::vertex_count_limit(std::size_t index) const {
   if (value != std::floor(value) || value < 0.0)
     fail(fmt::format("'{}' needs a non-negative integer, got '{}'", command_name_, args_[index]));
   if (value > kMaxVertexCount)
-    fail(fmt::format("'{}' {} is absurdly large (at most {:.0f})", command_name_, args_[index], kMaxVertexCount));
+    fail(fmt::format("'{}' {} exceeds the limit of {:.0f} (that many vertices would need {})", command_name_,
+                     args_[index], kMaxVertexCount, format_bytes(static_cast<std::uint64_t>(std::min(value, 1e17)) * 24)));
   return static_cast<std::size_t>(value);
 }
 
@@ -434,7 +436,7 @@ Scene TestSceneParser::parse(const std::string& text) {
   scene_.root = 0;
 
   const auto& table = command_table();
-  std::size_t begin = 0;
+  std::size_t begin = text.starts_with("\xEF\xBB\xBF") ? 3 : 0;  // a UTF-8 byte order mark is not a command
   line_ = 0;
   while (begin < text.size()) {
     std::size_t end = text.find('\n', begin);
@@ -442,6 +444,9 @@ Scene TestSceneParser::parse(const std::string& text) {
     const std::string_view line(text.data() + begin, end - begin);
     begin = end + 1;
     ++line_;
+    for (unsigned char c : line)
+      if (c < 0x20 && !is_space(char(c)))
+        fail(fmt::format("binary data (byte 0x{:02x}): not a text file", static_cast<unsigned>(c)));
 
     args_.clear();
     for (std::size_t i = 0; i < line.size();) {

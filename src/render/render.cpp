@@ -2,7 +2,9 @@
 
 #include <x86intrin.h>
 
+#include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <chrono>
 #include <mutex>
 
@@ -11,6 +13,10 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include <fmt/format.h>
+
+#include "rt/core/error.h"
+#include "rt/core/memory.h"
 #include "rt/render/camera.h"
 
 namespace rt {
@@ -42,8 +48,19 @@ bool is_timing_sample(int x, int y) { return (x + 3 * y) % kTimingStride == 0; }
 
 }  // namespace
 
+void check_render_memory(const Scene& scene) {
+  // Per pixel: the float RGB image, its 8-bit copy and the encoded file, which write_image builds
+  // in memory (at most the float size, for uncompressed EXR).
+  constexpr std::uint64_t kBytesPerPixel = sizeof(Color) + 3 + sizeof(Color);
+  const std::uint64_t pixels = std::uint64_t(scene.settings.width) * std::uint64_t(scene.settings.height);
+  if (const auto shortfall = memory_shortfall(pixels * kBytesPerPixel))
+    throw InputError(scene.source, "", fmt::format("a {}x{} image {} ({} bytes per pixel)", scene.settings.width,
+                                                   scene.settings.height, *shortfall, kBytesPerPixel));
+}
+
 RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel& accel,
                           const RenderOptions& options) {
+  check_render_memory(scene);
   const int width = scene.settings.width, height = scene.settings.height;
   const CameraFrame frame = make_camera_frame(scene.camera, width, height, scene.source);
   const TextureSampler textures(scene);
@@ -57,31 +74,63 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   const int tile_count = tiles_x * tiles_y;
 
   result.image = Image(width, height);
-  tbb::enumerable_thread_specific<RayCounts> thread_counts;
+  result.tile_count = tile_count;
+  result.tile_done.assign(std::size_t(tile_count), 0);
+  struct ThreadState {
+    RayCounts counts;
+    std::uint64_t non_finite = 0;
+    std::uint64_t first_non_finite = ~std::uint64_t(0);  // row-major pixel index
+  };
+  tbb::enumerable_thread_specific<ThreadState> thread_states;
   std::atomic<int> tiles_done{0};
   std::mutex progress_mutex;
+  const auto cancelled = [&] { return options.cancel && options.cancel->load(std::memory_order_relaxed); };
+
+  // One sample's colour, with the NaN/Inf guard: a non-finite colour becomes black and is counted.
+  const auto guarded = [](Color c, ThreadState& state, std::uint64_t pixel) {
+    if (std::isfinite(c.r) && std::isfinite(c.g) && std::isfinite(c.b)) return c;
+    ++state.non_finite;
+    state.first_non_finite = std::min(state.first_non_finite, pixel);
+    return Color(0.0f);
+  };
 
   auto render_tiles = [&](const tbb::blocked_range<int>& range) {
     ScopedFlushDenormals flush;
-    RayCounts& counts = thread_counts.local();
+    ThreadState& state = thread_states.local();
+    RayCounts& counts = state.counts;
     for (int t = range.begin(); t != range.end(); ++t) {
       const int x0 = (t % tiles_x) * tile, y0 = (t / tiles_x) * tile;
       const int x1 = std::min(x0 + tile, width), y1 = std::min(y0 + tile, height);
-      for (int y = y0; y < y1; ++y)
+      bool abandoned = false;
+      for (int y = y0; y < y1 && !abandoned; ++y) {
+        if (cancelled()) {
+          abandoned = true;
+          break;
+        }
         for (int x = x0; x < x1; ++x) {
           const bool timed = options.time_queries && is_timing_sample(x, y);
+          const ShadingContext& shading = timed ? timed_context : context;
+          const std::uint64_t pixel = std::uint64_t(y) * std::uint64_t(width) + std::uint64_t(x);
           const std::uint64_t start = timed ? __rdtsc() : 0;
           if (spp == 1) {
-            result.image.at(x, y) = find_color(timed ? timed_context : context, ray_through_pixel(frame, x, y), 0, counts);
+            result.image.at(x, y) = guarded(find_color(shading, ray_through_pixel(frame, x, y), 0, counts), state, pixel);
           } else {
             Vec3d sum(0.0);  // linear RGB, double: the box filter's average
             for (int s = 0; s < spp; ++s)
-              sum += Vec3d(find_color(timed ? timed_context : context, ray_through_pixel_sample(frame, x, y, s, spp), 0, counts));
+              sum += Vec3d(guarded(find_color(shading, ray_through_pixel_sample(frame, x, y, s, spp), 0, counts),
+                                   state, pixel));
             result.image.at(x, y) = Color(sum / double(spp));
           }
           counts.camera += std::uint64_t(spp);
           if (timed) counts.loop_ticks += __rdtsc() - start;
         }
+      }
+      if (abandoned) {  // unfinished tiles are black, whatever rows were done
+        for (int y = y0; y < y1; ++y)
+          for (int x = x0; x < x1; ++x) result.image.at(x, y) = Color(0.0f);
+        continue;
+      }
+      result.tile_done[std::size_t(t)] = 1;
       const int done = ++tiles_done;
       if (options.on_progress) {
         std::lock_guard lock(progress_mutex);
@@ -99,8 +148,49 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
     tbb::parallel_for(all_tiles, render_tiles, tbb::simple_partitioner());
   }
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  for (const RayCounts& counts : thread_counts) result.rays += counts;
+  std::uint64_t first_non_finite = ~std::uint64_t(0);
+  for (const ThreadState& state : thread_states) {
+    result.rays += state.counts;
+    result.non_finite_samples += state.non_finite;
+    first_non_finite = std::min(first_non_finite, state.first_non_finite);
+  }
+  if (result.non_finite_samples > 0)
+    result.first_non_finite_pixel = {int(first_non_finite % std::uint64_t(width)), int(first_non_finite / std::uint64_t(width))};
+  result.cancelled = result.tiles_finished() < tile_count;
   return result;
 }
+
+std::vector<std::string> trace_pixel(const Scene& scene, const FlatScene& flat, const Accel& accel,
+                                     const RenderOptions& options, int x, int y) {
+  const int width = scene.settings.width, height = scene.settings.height;
+  if (x < 0 || y < 0 || x >= width || y >= height)
+    throw InputError(scene.source, "", fmt::format("pixel ({}, {}) is outside the {}x{} image", x, y, width, height));
+  const CameraFrame frame = make_camera_frame(scene.camera, width, height, scene.source);
+  const TextureSampler textures(scene);
+  const EffectsPlan plan = plan_effects(scene, flat, options.ray_offset, options.effects);
+  std::vector<std::string> lines;
+  ShadingContext context{scene, flat, accel, plan, options.ray_offset, &textures, false};
+  context.trace = &lines;
+  const int spp = std::max(1, options.samples_per_pixel);
+  ScopedFlushDenormals flush;  // as in render_image, so the trace shows the values the render computes
+  RayCounts counts;
+  Vec3d sum(0.0);
+  for (int s = 0; s < spp; ++s) {
+    const Vec2d offset = pixel_sample_offset(x, y, s, spp);
+    lines.push_back(fmt::format("pixel ({}, {}) sample {} of {} at ({:.6g}, {:.6g}) in the pixel:", x, y, s + 1, spp,
+                                offset.x, offset.y));
+    const Color c = find_color(context, spp == 1 ? ray_through_pixel(frame, x, y)
+                                                 : ray_through_pixel_sample(frame, x, y, s, spp), 0, counts);
+    const bool finite = std::isfinite(c.r) && std::isfinite(c.g) && std::isfinite(c.b);
+    if (!finite) lines.push_back("  NOT FINITE: the render replaces this sample by black");
+    sum += finite ? Vec3d(c) : Vec3d(0.0);
+  }
+  const Vec3d average = sum / double(spp);
+  lines.push_back(fmt::format("pixel ({}, {}) = ({:.6g}, {:.6g}, {:.6g}) linear RGB, {} rays", x, y, average.x,
+                              average.y, average.z, counts.total() + std::uint64_t(spp)));
+  return lines;
+}
+
+int RenderResult::tiles_finished() const { return int(std::count(tile_done.begin(), tile_done.end(), 1)); }
 
 }  // namespace rt

@@ -7,6 +7,8 @@
 
 #include <x86intrin.h>
 
+#include <fmt/format.h>
+
 namespace rt {
 
 namespace {
@@ -33,6 +35,20 @@ constexpr double kConvexFacingMargin = 1e-6;
 // surface is never its own occluder; nothing else lies in between, the camera ray found it closest.
 constexpr float kRetraceMargin = 0x1p-16f;
 
+std::string format_vec(const Vec3d& v) { return fmt::format("({:.6g}, {:.6g}, {:.6g})", v.x, v.y, v.z); }
+
+std::string format_ray(const Ray& ray) {
+  return fmt::format("origin {} direction {} t in [{:.6g}, {:.6g}]", format_vec(Vec3d(ray.origin)),
+                     format_vec(Vec3d(ray.direction)), ray.tnear, ray.tfar);
+}
+
+// One line of the --debug-pixel trace, indented by ray depth; nothing when tracing is off.
+template <typename... Args>
+void note(const ShadingContext& context, int depth, fmt::format_string<Args...> format, Args&&... args) {
+  if (context.trace)
+    context.trace->push_back(std::string(2 * std::size_t(depth), ' ') + fmt::format(format, std::forward<Args>(args)...));
+}
+
 }  // namespace
 
 std::uint64_t RayCounts::skipped_total() const { return std::accumulate(skipped.begin(), skipped.end(), std::uint64_t{0}); }
@@ -56,7 +72,12 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
   const std::uint64_t intersect_start = context.time_queries ? __rdtsc() : 0;
   const Hit hit = context.accel.intersect(ray);
   if (context.time_queries) add_at(counts.intersect_ticks_per_depth, std::size_t(depth), __rdtsc() - intersect_start);
-  if (!hit.found()) return context.scene.settings.background;
+  if (!hit.found()) {
+    if (context.trace)
+      note(context, depth, "{} ray {}: miss, background {}", depth == 0 ? "camera" : "reflection", format_ray(ray),
+         format_vec(Vec3d(context.scene.settings.background)));
+    return context.scene.settings.background;
+  }
   add_at(counts.hits_per_depth, std::size_t(depth));
 
   // Surface at the hit, world space, double. The point is interpolated from the triangle's
@@ -94,16 +115,29 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
   const Vec3d specular(material.specular);
   const Vec3d reflective(material.reflective.value_or(material.specular));
 
+  if (context.trace)
+    note(context, depth, "{} ray {}: hit {} {} at t = {:.9g}, point {}, shading normal {}, material {} '{}'",
+       depth == 0 ? "camera" : "reflection", format_ray(ray), flat.is_sphere(hit.primitive) ? "sphere" : "triangle",
+       hit.primitive, hit.t, format_vec(point), format_vec(normal), material_id, material.name);
+
   const EffectsPlan& plan = context.plan;
   const MaterialPlan& terms = plan.materials[material_id];
   const bool prune = plan.options.prune;
-  const auto skip = [&counts](SkipRule rule) { ++counts.skipped[static_cast<int>(rule)]; };
+  // `light`: index of the light whose shadow ray is skipped, or -1 for the reflection ray.
+  const auto skip = [&](SkipRule rule, int light) {
+    ++counts.skipped[static_cast<int>(rule)];
+    if (context.trace)
+      note(context, depth, "  {}: not traced ({})", light < 0 ? "reflection" : fmt::format("light {}", light),
+           to_string(rule));
+  };
   const auto trace_shadow = [&](const Ray& shadow_ray, std::size_t light) {
     ++counts.shadow;
     add_at(counts.shadow_per_light, light);
     const std::uint64_t start = context.time_queries ? __rdtsc() : 0;
     const bool blocked = context.accel.occluded(shadow_ray);
     if (context.time_queries) add_at(counts.shadow_ticks_per_light, light, __rdtsc() - start);
+    if (context.trace)
+      note(context, depth, "  light {}: shadow ray {}: {}", light, format_ray(shadow_ray), blocked ? "blocked" : "clear");
     return blocked;
   };
 
@@ -111,8 +145,9 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
   for (std::size_t j = 0; j < context.scene.lights.size(); ++j) {
     const Light& light = context.scene.lights[j];
     const LightPlan& light_plan = plan.lights[j];
+    const int light_index = int(j);
     if (!light_plan.contributes) {
-      skip(SkipRule::light_off);
+      skip(SkipRule::light_off, light_index);
       continue;
     }
     Vec3d to_light;
@@ -123,7 +158,7 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
       const Vec3d offset = Vec3d(light.position) - point;
       const double d = glm::length(offset);
       if (!(d > 0.0)) {  // a light exactly at the point has no direction
-        skip(SkipRule::light_on_surface);
+        skip(SkipRule::light_on_surface, light_index);
         continue;
       }
       to_light = offset / d;
@@ -149,11 +184,11 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
 
     // Exact rules first, then the opt-in approximation; the first rule that applies is counted.
     if (prune && term == Vec3d(0.0)) {
-      skip(SkipRule::zero_contribution);
+      skip(SkipRule::zero_contribution, light_index);
       continue;
     }
     if (plan.options.min_light_contribution > 0.0 && max_channel(term) < plan.options.min_light_contribution) {
-      skip(SkipRule::dim_light);
+      skip(SkipRule::dim_light, light_index);
       continue;
     }
     bool visible = true;
@@ -164,14 +199,14 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
       // same question (a ray from the offset hit point can disagree with the camera ray by
       // rounding where it grazes a silhouette edge).
       if (prune) {
-        skip(SkipRule::light_at_eye);
+        skip(SkipRule::light_at_eye, light_index);
       } else {
         Ray shadow_ray = ray;
         shadow_ray.tfar = hit.t * (1.0f - kRetraceMargin);
         visible = !trace_shadow(shadow_ray, j);
       }
     } else if (plan.convex && glm::dot(surface.geometric_normal, to_light) > kConvexFacingMargin) {
-      skip(SkipRule::convex_facing);  // the ray stays in the open half-space in front of the surface
+      skip(SkipRule::convex_facing, light_index);  // the ray stays in the open half-space in front of the surface
     } else {
       Ray shadow_ray;
       shadow_ray.origin = offset_ray_origin(context.ray_offset, surface, to_light);
@@ -183,18 +218,20 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
         shadow_ray.tfar = static_cast<float>(light_distance);
         visible = !trace_shadow(shadow_ray, j);
       } else {
-        skip(SkipRule::light_on_surface);  // closer than the margin: nothing can be in between
+        skip(SkipRule::light_on_surface, light_index);  // closer than the margin: nothing can be in between
       }
     }
+    if (context.trace)
+      note(context, depth, "  light {}: {}, term {}", j, visible ? "visible" : "in shadow", format_vec(term));
     if (visible) radiance += term;
   }
 
   if (depth < context.scene.settings.max_depth) {
     const Vec3d next_throughput = throughput * reflective;
     if (prune && !terms.reflection) {
-      skip(SkipRule::black_reflection);
+      skip(SkipRule::black_reflection, -1);
     } else if (plan.options.min_throughput > 0.0 && max_channel(next_throughput) < plan.options.min_throughput) {
-      skip(SkipRule::low_throughput);
+      skip(SkipRule::low_throughput, -1);
     } else {
       const Vec3d reflected = direction - 2.0 * glm::dot(direction, normal) * normal;
       Ray reflection_ray;
@@ -202,9 +239,11 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
       reflection_ray.direction = Vec3f(reflected);
       ++counts.reflection;
       add_at(counts.reflection_per_depth, std::size_t(depth) + 1);
+      if (context.trace) note(context, depth, "  reflection, weight {}:", format_vec(reflective));
       radiance += reflective * Vec3d(find_color(context, reflection_ray, depth + 1, counts, next_throughput));
     }
   }
+  if (context.trace) note(context, depth, "  colour {}", format_vec(radiance));
   return Color(radiance);
 }
 

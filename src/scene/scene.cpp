@@ -1,6 +1,7 @@
 #include "rt/scene/scene.h"
 
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include <fmt/format.h>
@@ -104,6 +105,40 @@ void validate_scene(const Scene& scene) {
           throw InputError(scene.source, where, "triangle index out of range");
     }
   }
+}
+
+std::uint64_t sum_over_instances(const Scene& scene, const std::function<std::uint64_t(const Node&)>& weight) {
+  if (scene.nodes.empty()) return 0;
+  constexpr std::uint64_t kSaturated = std::numeric_limits<std::uint64_t>::max();
+  const auto add = [](std::uint64_t a, std::uint64_t b) { return a > kSaturated - b ? kSaturated : a + b; };
+  enum class State : std::uint8_t { unvisited, open, done };
+  std::vector<State> state(scene.nodes.size(), State::unvisited);
+  std::vector<std::uint64_t> subtree(scene.nodes.size(), 0);  // memo: sum over one instance of the node
+  std::vector<std::pair<std::uint32_t, std::size_t>> stack{{scene.root, 0}};  // node, next child
+  state[scene.root] = State::open;
+  while (!stack.empty()) {
+    auto& [node, next] = stack.back();
+    const std::vector<std::uint32_t>& children = scene.nodes[node].children;
+    if (next < children.size()) {
+      const std::uint32_t child = children[next++];
+      if (state[child] == State::open) {
+        const std::string& name = scene.nodes[child].name;
+        throw InputError(scene.source, fmt::format("node '{}'", name.empty() ? std::to_string(child) : name),
+                         "node hierarchy contains a cycle");
+      }
+      if (state[child] == State::unvisited) {
+        state[child] = State::open;
+        stack.push_back({child, 0});
+      }
+      continue;
+    }
+    std::uint64_t sum = weight(scene.nodes[node]);
+    for (std::uint32_t child : children) sum = add(sum, subtree[child]);
+    subtree[node] = sum;
+    state[node] = State::done;
+    stack.pop_back();
+  }
+  return subtree[scene.root];
 }
 
 }  // namespace rt

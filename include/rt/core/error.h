@@ -3,6 +3,7 @@
 
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 namespace rt {
 
@@ -20,5 +21,10 @@ class RuntimeError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
+
+// `text` made safe to print as one line on a terminal: control characters (newlines included) and
+// bytes that are not valid UTF-8 become \xNN escapes; valid UTF-8 passes through unchanged.
+// Messages quote user data (a command name, a token), which may be binary garbage.
+std::string printable_line(std::string_view text);
 
 }  // namespace rt

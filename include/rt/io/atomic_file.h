@@ -3,6 +3,7 @@
 
 #include <filesystem>
 #include <string>
+#include <string_view>
 
 namespace rt {
 
@@ -18,7 +19,12 @@ void commit_temporary(const std::filesystem::path& temporary, const std::filesys
 // For refusing a bad output path before expensive work rather than after it.
 void check_parent_directory_writable(const std::string& path);
 
-// Writes `content` to `path` through a temporary sibling. Throws RuntimeError on failure.
+// Writes `bytes` to `path` through a temporary sibling: every write(2) checked, fsync'd, then
+// renamed into place. On any failure (a full disk, a file size limit, an I/O error) the temporary
+// is removed, `path` is untouched, and RuntimeError names `path` and the system's reason.
+void write_file_atomically(const std::string& path, std::string_view bytes);
+
+// write_file_atomically for text.
 void write_text_file_atomically(const std::string& path, const std::string& content);
 
 }  // namespace rt

@@ -1,7 +1,13 @@
 #pragma once
 // The batch render loop: tiles in parallel with TBB, one FindColor per pixel.
 
+#include <atomic>
+#include <cstdint>
 #include <functional>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "rt/accel/accel.h"
 #include "rt/core/image.h"
@@ -22,6 +28,9 @@ struct RenderOptions {
   bool time_queries = false;
   // Called from worker threads (serialised) with the fraction of tiles done, in [0, 1].
   std::function<void(double)> on_progress;
+  // When set and it becomes true (e.g. from a signal handler), the render stops within a row of
+  // pixels: no tile is started after that and the tile in progress is abandoned.
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 struct RenderResult {
@@ -29,11 +38,32 @@ struct RenderResult {
   EffectsPlan plan;  // what the render skipped, decided by plan_effects before the first ray
   RayCounts rays;
   double seconds = 0.0;  // wall-clock time of the render loop
+  // Tiles (RenderOptions::tile_size squares, row-major) and which of them were finished: all of
+  // them unless the render was cancelled. Unfinished tiles are black in `image`.
+  int tile_count = 0;
+  std::vector<std::uint8_t> tile_done;
+  bool cancelled = false;
+  // Samples whose colour was NaN or infinite, replaced by black (a guard: shading should never
+  // produce one), and the first such pixel in row-major order.
+  std::uint64_t non_finite_samples = 0;
+  std::optional<std::pair<int, int>> first_non_finite_pixel;  // (x, y)
+  int tiles_finished() const;
 };
+
+// Throws InputError naming scene.source when the image a render of `scene` allocates (float RGB,
+// plus the 8-bit copy an output file needs) does not fit in available memory (rt/core/memory.h).
+// render_image checks it; callers may check earlier, before loading and building the rest.
+void check_render_memory(const Scene& scene);
 
 // Renders scene.settings.width x height pixels. The image is bit-identical whatever the thread
 // count or tile order: each pixel depends only on its own ray. Throws InputError on a bad camera.
 RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel& accel,
                           const RenderOptions& options);
+
+// The pixel (x, y) rendered alone with a trace of its ray tree: for every sample, each ray (camera,
+// reflection, shadow) with origin, direction and what it hit, each light's term or the rule that
+// skipped it, and the colours returned. One line per event, indented by depth. For --debug-pixel.
+std::vector<std::string> trace_pixel(const Scene& scene, const FlatScene& flat, const Accel& accel,
+                                     const RenderOptions& options, int x, int y);
 
 }  // namespace rt

@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "rt/accel/accel.h"
@@ -48,6 +49,9 @@ struct ShadingContext {
   RayOffset ray_offset{};   // self-intersection policy of shadow and reflection rays
   const TextureSampler* textures = nullptr;  // diffuse textures; nullptr: materials' textures are ignored
   bool time_queries = false;  // fill RayCounts' tick counters (costs two timestamp reads per query)
+  // When set, find_color appends a line per ray, light and result (the --debug-pixel trace);
+  // single-threaded use only.
+  std::vector<std::string>* trace = nullptr;
 };
 
 // The seed's FindColor for a ray whose origin and direction are world space:

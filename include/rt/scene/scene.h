@@ -4,6 +4,7 @@
 // Loaders build it; flatten_scene() turns it into world-space triangle buffers.
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -149,5 +150,12 @@ std::optional<CameraProblem> find_camera_problem(const Camera& camera);
 
 // Throws InputError naming `source`, "camera.<field>" and the reason if find_camera_problem finds one.
 void validate_camera(const Camera& camera, const std::string& source);
+
+// Sum of weight(node) over every instance of every node reachable from scene.root, a shared
+// subgraph counted once per path that reaches it (as flattening expands it), saturating at
+// UINT64_MAX. Sizes what flattening will allocate before it does: a file can instance a subtree
+// 2^40 times in a few hundred bytes. Iterative, memoised per node; throws InputError naming
+// scene.source and a node of the cycle when the hierarchy has one.
+std::uint64_t sum_over_instances(const Scene& scene, const std::function<std::uint64_t(const Node&)>& weight);
 
 }  // namespace rt
