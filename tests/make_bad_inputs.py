@@ -5,6 +5,9 @@ Each case breaks one thing in a small valid scene of its format; names starting 
 variants that must render (BOM, CRLF, a missing MTL library, GLB). Expected outcomes are in
 tests/bad_inputs/catalogue.tsv. Fixed seed: the output is the same on every run.
 
+Files named fuzz-* are inputs libFuzzer found crashing the renderer (tests/fuzz), kept verbatim as
+regression cases; this script does not write them.
+
 Usage: python3 tests/make_bad_inputs.py
 """
 import base64, json, os, struct, random
@@ -49,6 +52,9 @@ parts_close = ' ] }' * 5000
 w('json-deep-nesting.json', jrep('"nodes": [ { "models": [ { "geometry": { "type": "sphere" }, "material": "red" } ] } ]',
   '"nodes": [ ' + parts_open + '{ "models": [ { "geometry": { "type": "sphere" }, "material": "red" } ] }' + parts_close + ' ]'))
 w('json-utf16.json', good_json.encode('utf-16'))
+w('json-eye-beyond-limit.json', jrep('"eye": [0, 0, 5]', '"eye": [0, 0, 1e20]'))
+w('json-vertex-beyond-limit.json', jrep('{ "type": "sphere" }',
+  '{ "type": "mesh", "positions": [[0,0,0],[1,0,0],[0,1e30,0]], "triangles": [[0, 1, 2]] }'))
 w('ok-json-bom.json', b'\xef\xbb\xbf' + good_json.encode())
 w('ok-json-crlf.json', good_json.replace('\n', '\r\n'))
 
@@ -81,6 +87,7 @@ w('test-nan.test', trep('sphere 0 0 -1 0.5', 'sphere 0 0 -1 nan'))
 w('test-infinity.test', trep('vertex 1 -1 0', 'vertex inf -1 0'))
 w('test-unknown-command.test', trep('sphere 0 0 -1 0.5', 'cube 0 0 -1 0.5'))
 w('test-pop-without-push.test', trep('sphere 0 0 -1 0.5', 'popTransform\nsphere 0 0 -1 0.5'))
+w('test-vertex-beyond-limit.test', trep('vertex 0 1 0', 'vertex 0 1e30 0'))
 w('test-degenerate-camera.test', trep('camera 0 0 5 0 0 0 0 1 0 45', 'camera 0 0 5 0 0 5 0 1 0 45'))
 w('ok-test-bom.test', b'\xef\xbb\xbf' + good_test.encode())
 w('ok-test-crlf.test', good_test.replace('\n', '\r\n'))

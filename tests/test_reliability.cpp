@@ -294,7 +294,7 @@ TEST_CASE("SIGINT and SIGTERM stop a long render within a second, writing nothin
   const std::vector<std::string> long_render{"render", "--spp", "64", "-o", "out.png"};
   rt_test::TempDir dir;
   SECTION("SIGINT: exit 130, no file") {
-    const Interrupted run = interrupt_rt(dir, long_render, SIGINT, std::chrono::milliseconds(1500));
+    const Interrupted run = interrupt_rt(dir, long_render, SIGINT, std::chrono::milliseconds(2500));
     INFO("stderr: " << run.err);
     CHECK(run.status == 130);
     CHECK(run.seconds < 1.0);
@@ -304,7 +304,7 @@ TEST_CASE("SIGINT and SIGTERM stop a long render within a second, writing nothin
   SECTION("SIGTERM with --partial-output: exit 143, the finished tiles in out.partial.png") {
     std::vector<std::string> args = long_render;
     args.push_back("--partial-output");
-    const Interrupted run = interrupt_rt(dir, args, SIGTERM, std::chrono::milliseconds(1500));
+    const Interrupted run = interrupt_rt(dir, args, SIGTERM, std::chrono::milliseconds(2500));
     INFO("stderr: " << run.err);
     CHECK(run.status == 143);
     CHECK(run.seconds < 1.0);

@@ -22,8 +22,12 @@ void ProgressBar::update(double fraction) {
   constexpr int kWidth = 30;
   const int filled = static_cast<int>(fraction * kWidth);
   const double seconds = std::chrono::duration<double>(now - start_).count();
-  fmt::print(stderr, "\r{} [{}{}] {:3.0f}%  {:.1f} s", label_, std::string(filled, '#'),
-             std::string(kWidth - filled, '.'), 100.0 * fraction, seconds);
+  // Remaining time by linear extrapolation, once enough is done for it to mean something.
+  const std::string left = fraction >= 0.02 && fraction < 1.0
+                               ? fmt::format(", ~{:.0f} s left", seconds * (1.0 - fraction) / fraction)
+                               : "";
+  fmt::print(stderr, "\r{} [{}{}] {:3.0f}%  {:.1f} s{}\033[K", label_, std::string(filled, '#'),
+             std::string(kWidth - filled, '.'), 100.0 * fraction, seconds, left);
   std::fflush(stderr);
 }
 

@@ -22,6 +22,10 @@ struct StackEntry {
 
 bool finite(const Vec3f& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
+bool beyond_world_limit(const Vec3d& p) {
+  return std::max({std::abs(p.x), std::abs(p.y), std::abs(p.z)}) > kMaxWorldCoordinate;
+}
+
 std::string node_label(const Scene& scene, std::uint32_t index) {
   const std::string& name = scene.nodes[index].name;
   return fmt::format("node '{}'", name.empty() ? std::to_string(index) : name);
@@ -42,6 +46,11 @@ void append_sphere(const Scene& scene, std::uint32_t node_index, const Model& mo
   const double det = glm::determinant(linear);
   if (!(std::abs(det) > 0.0) || !std::isfinite(det))
     throw InputError(scene.source, node_label(scene, node_index), "transform is singular or not finite");
+  Vec3d lower, upper;
+  sphere_bounds(sphere, lower, upper);
+  if (beyond_world_limit(lower) || beyond_world_limit(upper))
+    throw InputError(scene.source, node_label(scene, node_index),
+                     fmt::format("a sphere reaches beyond +-{:g} in world space", kMaxWorldCoordinate));
   sphere.object_from_world = glm::inverse(sphere.world_from_object);
   sphere.normal_from_object = glm::transpose(glm::inverse(linear));
   sphere.material = model.material;
@@ -72,6 +81,10 @@ void append_model(const Scene& scene, std::uint32_t node_index, const Model& mod
     if (!finite(p) || !finite(unit_n))
       throw InputError(scene.source, node_label(scene, node_index),
                        fmt::format("vertex {} is not finite in world space", i));
+    if (beyond_world_limit(Vec3d(p)))
+      throw InputError(scene.source, node_label(scene, node_index),
+                       fmt::format("vertex {} lies at ({:g}, {:g}, {:g}) in world space, beyond +-{:g}", i, p.x, p.y,
+                                   p.z, kMaxWorldCoordinate));
     flat.positions.push_back(p);
     flat.normals.push_back(unit_n);
   }

@@ -708,6 +708,11 @@ Scene GltfReader::read() {
       stack.push_back({*c, entry.world_from_node * scene.nodes[static_cast<std::size_t>(*c) + 1].parent_from_node});
   }
 
+  // Checked before a camera is framed on it: an eye placed from such bounds could not start a ray.
+  const Vec3d extent = glm::max(glm::abs(lo_), glm::abs(hi_));
+  if (lo_.x <= hi_.x && std::max({extent.x, extent.y, extent.z}) > kMaxWorldCoordinate)
+    fail("/nodes", fmt::format("the geometry extends from ({:g}, {:g}, {:g}) to ({:g}, {:g}, {:g}), beyond +-{:g} in "
+                               "world space", lo_.x, lo_.y, lo_.z, hi_.x, hi_.y, hi_.z, kMaxWorldCoordinate));
   read_camera(placed, scene);
   read_lights(placed, scene);
   scene.materials = std::move(materials_);
@@ -723,6 +728,9 @@ InputError tinygltf_error(const std::string& path, const std::string& message) {
   std::string line = message.substr(0, message.find('\n'));
   if (line.empty()) line = "cannot parse glTF";
   std::smatch match;
+  // tinygltf passes on nlohmann's exception text; say it the way the native JSON loader does.
+  if (std::regex_search(line, match, std::regex(R"(parse error at line (\d+), column (\d+): (.*))")))
+    return InputError(path, match[1].str() + ":" + match[2].str(), "JSON syntax error: " + match[3].str());
   if (std::regex_search(line, match, std::regex(R"((buffer|image|bufferView|accessor)\[(\d+)\])")))
     return InputError(path, fmt::format("/{}s/{}", match[1].str(), match[2].str()), line);
   const std::string not_found = "File not found : ";
@@ -779,6 +787,7 @@ void check_glb_container(const std::string& path, bool has_magic) {
 Scene load_gltf_scene(const std::string& path, const GltfOptions& options, LoadReport* report) {
   std::error_code error;
   if (!fs::is_regular_file(path, error)) throw InputError(path, "", fs::exists(path, error) ? "not a regular file" : "no such file");
+  if (fs::file_size(path, error) == 0) throw InputError(path, "", "empty file");
   char magic[4] = {};
   std::ifstream(path, std::ios::binary).read(magic, 4);
   const bool has_magic = std::memcmp(magic, "glTF", 4) == 0;

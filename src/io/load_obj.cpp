@@ -167,6 +167,11 @@ ObjFile read_obj(const std::string& path) {
     if (unknown.insert((*it)[1].str()).second) obj.unknown_materials.push_back((*it)[1].str());
   obj.position_count = obj.attrib.vertices.size() / 3;
   obj.normal_count = obj.attrib.normals.size() / 3;
+  // OBJ positions are world space; checked before a camera is framed on them (rt/scene/scene.h).
+  for (std::size_t i = 0; i < obj.attrib.vertices.size(); ++i)
+    if (std::abs(obj.attrib.vertices[i]) > kMaxWorldCoordinate)
+      throw InputError(path, "", fmt::format("vertex {} has a coordinate {:g}, beyond +-{:g}", i / 3 + 1,
+                                             obj.attrib.vertices[i], kMaxWorldCoordinate));
   if (obj.shapes.empty() || std::all_of(obj.shapes.begin(), obj.shapes.end(), [](const tinyobj::shape_t& shape) {
         return shape.mesh.num_face_vertices.empty();
       }))

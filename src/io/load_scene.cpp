@@ -434,6 +434,8 @@ std::string line_column(const std::string& text, std::size_t byte) {
 }  // namespace
 
 Scene parse_scene_json(const std::string& text, const std::string& path) {
+  if (text.starts_with("\xFF\xFE") || text.starts_with("\xFE\xFF"))
+    throw InputError(path, "", "the file is UTF-16; scene files must be UTF-8 (or ASCII)");
   json document;
   try {
     document = json::parse(text, nullptr, /*allow_exceptions=*/true, /*ignore_comments=*/true);

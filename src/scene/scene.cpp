@@ -1,5 +1,6 @@
 #include "rt/scene/scene.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -24,6 +25,9 @@ void check_color(const Scene& scene, const std::string& where, const Color& c) {
 
 std::optional<CameraProblem> find_camera_problem(const Camera& camera) {
   if (!finite(camera.eye)) return CameraProblem{"eye", "eye is not finite"};
+  if (std::max({std::abs(camera.eye.x), std::abs(camera.eye.y), std::abs(camera.eye.z)}) > kMaxEyeCoordinate)
+    return CameraProblem{"eye", fmt::format("eye ({:g}, {:g}, {:g}) lies beyond +-{:g}, where float32 rays are no "
+                                            "longer valid", camera.eye.x, camera.eye.y, camera.eye.z, kMaxEyeCoordinate)};
   if (!finite(camera.target)) return CameraProblem{"target", "target is not finite"};
   if (!finite(camera.up)) return CameraProblem{"up", "up is not finite"};
   if (!(camera.fovy_degrees > 0.0 && camera.fovy_degrees < 180.0))

@@ -6,7 +6,7 @@
 
 namespace rt {
 
-// Draws "label [#####.....]  45%  1.2 s" on stderr, redrawn at most every 100 ms, only when stderr
+// Draws "label [#####.....]  45%  1.2 s, ~1 s left" on stderr, redrawn at most every 100 ms, only when stderr
 // is a terminal and `enabled`. finish() clears the line. Not thread-safe: callers serialise.
 class ProgressBar {
  public:

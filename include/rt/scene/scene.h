@@ -114,6 +114,13 @@ struct Node {
 inline constexpr int kMaxImageSide = 1 << 16;
 inline constexpr int kMaxReflectionDepth = 1000;
 
+// Largest magnitude of a world-space coordinate (scene units): Embree rejects rays whose origin
+// lies beyond +-1.844e18 (FLT_LARGE, an assertion in Debian's build), so the camera eye must stay
+// within kMaxEyeCoordinate and geometry (flatten_scene checks every vertex and sphere bound)
+// within kMaxWorldCoordinate, which leaves room for an eye framing that geometry from outside.
+inline constexpr double kMaxWorldCoordinate = 1e17;
+inline constexpr double kMaxEyeCoordinate = 1e18;
+
 // Image and integrator settings carried by a scene file; CLI flags may override them.
 struct RenderSettings {
   int width = 640;
