@@ -122,6 +122,20 @@ TEST_CASE("requests that cannot fit are refused before allocation, naming what w
   }
 }
 
+TEST_CASE("JSON node nesting: 255 levels load, 256 are refused, without exhausting the stack", "[reliability]") {
+  // Run by the AddressSanitizer suite too, whose much larger frames overflowed at ~1,000 levels.
+  const auto nested = [](int levels) {
+    std::string nodes = R"({ "models": [ { "geometry": { "type": "sphere" }, "material": "m" } ] })";
+    for (int i = 0; i < levels; ++i) nodes = R"({ "children": [ )" + nodes + " ] }";
+    return R"({ "camera": { "eye": [0, 0, 5], "target": [0, 0, 0], "fovy": 45 },
+               "materials": { "m": { "diffuse": 0.5 } }, "nodes": [ )" + nodes + " ] }";
+  };
+  const rt::Scene scene = rt::parse_scene_json(nested(255), "deep.json");
+  CHECK(scene.nodes.size() == 257);  // the root, 255 chained nodes and the leaf
+  CHECK_THROWS_WITH(rt::parse_scene_json(nested(256), "deep.json"),
+                    Catch::Contains("deep.json:/nodes/0/children/...: node hierarchy deeper than 256 levels"));
+}
+
 TEST_CASE("non-finite samples become black, are counted and the first pixel is reported", "[reliability]") {
   rt::Scene scene = rt::make_default_scene();
   scene.settings.width = 64;
