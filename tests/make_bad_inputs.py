@@ -28,9 +28,12 @@ good_json = '''{
   "nodes": [ { "models": [ { "geometry": { "type": "sphere" }, "material": "red" } ] } ]
 }
 '''
-def jrep(a, b, text=good_json):
+def replaced(text, a, b):
+    """`text` with its first `a` replaced by `b` (which must be there: a case must break something)."""
     assert a in text, a
     return text.replace(a, b, 1)
+def jrep(a, b):
+    return replaced(good_json, a, b)
 w('json-empty.json', '')
 w('json-truncated.json', good_json[:len(good_json) // 2])
 w('json-binary-garbage.json', garbage)
@@ -71,8 +74,7 @@ tri 0 1 2
 sphere 0 0 -1 0.5
 '''
 def trep(a, b):
-    assert a in good_test, a
-    return good_test.replace(a, b, 1)
+    return replaced(good_test, a, b)
 w('test-empty.test', '')
 w('test-binary-garbage.test', garbage)
 w('test-truncated.test', good_test[:good_test.index('tri 0 1 2') + len('tri 0 1')])
@@ -100,8 +102,7 @@ v 0 1 0
 f 1 2 3
 '''
 def orep(a, b):
-    assert a in good_obj, a
-    return good_obj.replace(a, b, 1)
+    return replaced(good_obj, a, b)
 w('obj-empty.obj', '')
 w('obj-binary-garbage.obj', garbage)
 w('obj-no-faces.obj', '# vertices only\nv 0 0 0\nv 1 0 0\nv 0 1 0\n')

@@ -102,7 +102,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
       const int x0 = (t % tiles_x) * tile, y0 = (t / tiles_x) * tile;
       const int x1 = std::min(x0 + tile, width), y1 = std::min(y0 + tile, height);
       bool abandoned = false;
-      for (int y = y0; y < y1 && !abandoned; ++y) {
+      for (int y = y0; y < y1; ++y) {
         if (cancelled()) {
           abandoned = true;
           break;
