@@ -170,13 +170,13 @@ TEST_CASE("a cancelled render stops, keeps finished tiles exactly and blacks out
   rt::RenderOptions options;
   options.threads = 2;
   const rt::RenderResult full = render(scene, options);
-  CHECK_FALSE(full.cancelled);
-  CHECK(full.tiles_finished() == full.tile_count);
+  CHECK_FALSE(full.cancelled());
+  CHECK(full.tiles_finished() == full.tile_count());
 
   std::atomic<bool> cancel{true};
   options.cancel = &cancel;
   const rt::RenderResult none = render(scene, options);
-  CHECK(none.cancelled);
+  CHECK(none.cancelled());
   CHECK(none.tiles_finished() == 0);
   for (const rt::Color& c : none.image.pixels) CHECK(is_black(c));
 
@@ -185,9 +185,9 @@ TEST_CASE("a cancelled render stops, keeps finished tiles exactly and blacks out
     if (fraction >= 0.3) cancel = true;
   };
   const rt::RenderResult part = render(scene, options);
-  CHECK(part.cancelled);
+  CHECK(part.cancelled());
   CHECK(part.tiles_finished() > 0);
-  CHECK(part.tiles_finished() < part.tile_count);
+  CHECK(part.tiles_finished() < part.tile_count());
   const int tile = options.tile_size, tiles_x = (scene.settings.width + tile - 1) / tile;
   for (int y = 0; y < scene.settings.height; ++y)
     for (int x = 0; x < scene.settings.width; ++x) {

@@ -181,10 +181,10 @@ int run_render(const RenderArgs& args) {
   options.cancel = &interrupted;
   const RenderResult result = render_image(scene, flat, *accel, options);
   progress.finish();
-  if (result.cancelled) {
+  if (result.cancelled()) {
     const int signal = interrupting_signal;
     const std::string what = fmt::format("rt: interrupted by {} after {} of {} tiles", signal == SIGTERM ? "SIGTERM" : "SIGINT",
-                                         result.tiles_finished(), result.tile_count);
+                                         result.tiles_finished(), result.tile_count());
     if (args.partial_output) {
       const std::string partial = partial_output_path(output);
       write_image(result.image, partial);

@@ -22,10 +22,6 @@ struct StackEntry {
 
 bool finite(const Vec3f& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
-bool beyond_world_limit(const Vec3d& p) {
-  return std::max({std::abs(p.x), std::abs(p.y), std::abs(p.z)}) > kMaxWorldCoordinate;
-}
-
 std::string node_label(const Scene& scene, std::uint32_t index) {
   const std::string& name = scene.nodes[index].name;
   return fmt::format("node '{}'", name.empty() ? std::to_string(index) : name);
@@ -48,7 +44,7 @@ void append_sphere(const Scene& scene, std::uint32_t node_index, const Model& mo
     throw InputError(scene.source, node_label(scene, node_index), "transform is singular or not finite");
   Vec3d lower, upper;
   sphere_bounds(sphere, lower, upper);
-  if (beyond_world_limit(lower) || beyond_world_limit(upper))
+  if (std::max(max_abs_coordinate(lower), max_abs_coordinate(upper)) > kMaxWorldCoordinate)
     throw InputError(scene.source, node_label(scene, node_index),
                      fmt::format("a sphere reaches beyond +-{:g} in world space", kMaxWorldCoordinate));
   sphere.object_from_world = glm::inverse(sphere.world_from_object);
@@ -81,7 +77,7 @@ void append_model(const Scene& scene, std::uint32_t node_index, const Model& mod
     if (!finite(p) || !finite(unit_n))
       throw InputError(scene.source, node_label(scene, node_index),
                        fmt::format("vertex {} is not finite in world space", i));
-    if (beyond_world_limit(Vec3d(p)))
+    if (max_abs_coordinate(Vec3d(p)) > kMaxWorldCoordinate)
       throw InputError(scene.source, node_label(scene, node_index),
                        fmt::format("vertex {} lies at ({:g}, {:g}, {:g}) in world space, beyond +-{:g}", i, p.x, p.y,
                                    p.z, kMaxWorldCoordinate));
@@ -146,19 +142,16 @@ FlatScene flatten_scene(const Scene& scene, const FlattenOptions& options) {
 
   // Exact sizes of the flattened buffers (every instance of every node), checked against the
   // memory available before anything is allocated.
-  const auto mesh_of = [&](const Model& model) { return model.mesh ? model.mesh.get() : unit_sphere_mesh.get(); };
-  const std::uint64_t vertex_total = sum_over_instances(scene, [&](const Node& node) {
-    std::uint64_t n = 0;
-    for (const Model& model : node.models)
-      if (const TriangleMesh* mesh = mesh_of(model)) n += mesh->positions.size();
-    return n;
-  });
-  const std::uint64_t triangle_total = sum_over_instances(scene, [&](const Node& node) {
-    std::uint64_t n = 0;
-    for (const Model& model : node.models)
-      if (const TriangleMesh* mesh = mesh_of(model)) n += mesh->triangles.size();
-    return n;
-  });
+  const auto instanced_total = [&](auto count_of_mesh) {
+    return sum_over_instances(scene, [&](const Node& node) {
+      std::uint64_t n = 0;
+      for (const Model& model : node.models)
+        if (const TriangleMesh* mesh = model.mesh ? model.mesh.get() : unit_sphere_mesh.get()) n += count_of_mesh(*mesh);
+      return n;
+    });
+  };
+  const std::uint64_t vertex_total = instanced_total([](const TriangleMesh& mesh) { return mesh.positions.size(); });
+  const std::uint64_t triangle_total = instanced_total([](const TriangleMesh& mesh) { return mesh.triangles.size(); });
   const std::uint64_t bytes = vertex_total * (2 * sizeof(Vec3f) + sizeof(Vec2f)) +
                               triangle_total * (sizeof(Vec3u) + sizeof(std::uint32_t));
   if (const auto shortfall = memory_shortfall(bytes))

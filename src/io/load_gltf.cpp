@@ -709,8 +709,7 @@ Scene GltfReader::read() {
   }
 
   // Checked before a camera is framed on it: an eye placed from such bounds could not start a ray.
-  const Vec3d extent = glm::max(glm::abs(lo_), glm::abs(hi_));
-  if (lo_.x <= hi_.x && std::max({extent.x, extent.y, extent.z}) > kMaxWorldCoordinate)
+  if (lo_.x <= hi_.x && std::max(max_abs_coordinate(lo_), max_abs_coordinate(hi_)) > kMaxWorldCoordinate)
     fail("/nodes", fmt::format("the geometry extends from ({:g}, {:g}, {:g}) to ({:g}, {:g}, {:g}), beyond +-{:g} in "
                                "world space", lo_.x, lo_.y, lo_.z, hi_.x, hi_.y, hi_.z, kMaxWorldCoordinate));
   read_camera(placed, scene);
@@ -752,28 +751,29 @@ InputError tinygltf_error(const std::string& path, const std::string& message) {
 // tinygltf answers every malformed GLB container with "Invalid glTF binary."; the container
 // (12-byte header, then 8-byte-headed chunks: JSON first, optionally BIN) is checked here first so
 // the message says what is wrong. Layout: glTF 2.0 specification, section 4.4 "Binary glTF Layout".
-void check_glb_container(const std::string& path, bool has_magic) {
-  std::ifstream in(path, std::ios::binary);
-  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (bytes.empty()) throw InputError(path, "", "empty file");
-  if (!has_magic)
+// Reads only the 12-byte header and the 8-byte chunk headers, not the chunks: `size` is the
+// file's size in bytes, `first_bytes` its first four.
+void check_glb_container(const std::string& path, std::uint64_t size, std::string_view first_bytes) {
+  if (first_bytes != "glTF")
     throw InputError(path, "", fmt::format("not a binary glTF: it starts with {}, not the magic 'glTF'",
-                                           printable_line(std::string_view(bytes).substr(0, 4))));
-  const auto u32 = [&](std::size_t offset) {
-    std::uint32_t value = 0;
-    for (int k = 3; k >= 0; --k) value = value << 8 | static_cast<unsigned char>(bytes[offset + std::size_t(k)]);
-    return value;
+                                           printable_line(first_bytes)));
+  std::ifstream in(path, std::ios::binary);
+  const auto u32_at = [&](std::uint64_t offset) {  // little-endian
+    unsigned char b[4] = {};
+    in.seekg(std::streamoff(offset));
+    in.read(reinterpret_cast<char*>(b), 4);
+    return std::uint32_t(b[0]) | std::uint32_t(b[1]) << 8 | std::uint32_t(b[2]) << 16 | std::uint32_t(b[3]) << 24;
   };
-  const std::size_t size = bytes.size();
   if (size < 20) throw InputError(path, "", fmt::format("truncated: {} bytes, shorter than the GLB header", size));
-  if (u32(4) != 2) throw InputError(path, "", fmt::format("GLB version {}; only version 2 is supported", u32(4)));
-  if (u32(8) != size)
-    throw InputError(path, "", fmt::format("the GLB header gives a length of {} bytes; the file has {}{}", u32(8), size,
-                                           u32(8) > size ? " (truncated?)" : ""));
-  std::size_t offset = 12;
+  if (const std::uint32_t version = u32_at(4); version != 2)
+    throw InputError(path, "", fmt::format("GLB version {}; only version 2 is supported", version));
+  if (const std::uint32_t length = u32_at(8); length != size)
+    throw InputError(path, "", fmt::format("the GLB header gives a length of {} bytes; the file has {}{}", length, size,
+                                           length > size ? " (truncated?)" : ""));
+  std::uint64_t offset = 12;
   for (int chunk = 0; offset < size; ++chunk) {
     if (size - offset < 8) throw InputError(path, "", fmt::format("chunk {} header at byte {} is truncated", chunk, offset));
-    const std::uint64_t length = u32(offset), type = u32(offset + 4);
+    const std::uint64_t length = u32_at(offset), type = u32_at(offset + 4);
     if (chunk == 0 && type != 0x4E4F534Au) throw InputError(path, "", "the first GLB chunk is not JSON");
     if (length > size - offset - 8)
       throw InputError(path, "", fmt::format("chunk {} ({} bytes from byte {}) runs past the end of the file ({} bytes)",
@@ -787,14 +787,15 @@ void check_glb_container(const std::string& path, bool has_magic) {
 Scene load_gltf_scene(const std::string& path, const GltfOptions& options, LoadReport* report) {
   std::error_code error;
   if (!fs::is_regular_file(path, error)) throw InputError(path, "", fs::exists(path, error) ? "not a regular file" : "no such file");
-  if (fs::file_size(path, error) == 0) throw InputError(path, "", "empty file");
+  const std::uint64_t size = fs::file_size(path, error);
+  if (size == 0) throw InputError(path, "", "empty file");
   char magic[4] = {};
   std::ifstream(path, std::ios::binary).read(magic, 4);
-  const bool has_magic = std::memcmp(magic, "glTF", 4) == 0;
+  const std::string_view first_bytes(magic, std::min<std::uint64_t>(size, 4));
   std::string extension = fs::path(path).extension().string();
   for (char& c : extension) c = char(std::tolower(static_cast<unsigned char>(c)));
-  const bool binary = has_magic || extension == ".glb";
-  if (binary) check_glb_container(path, has_magic);
+  const bool binary = first_bytes == "glTF" || extension == ".glb";
+  if (binary) check_glb_container(path, size, first_bytes);
 
   tinygltf::TinyGLTF loader;
   EmbeddedImages embedded;

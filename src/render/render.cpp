@@ -74,7 +74,6 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   const int tile_count = tiles_x * tiles_y;
 
   result.image = Image(width, height);
-  result.tile_count = tile_count;
   result.tile_done.assign(std::size_t(tile_count), 0);
   struct ThreadState {
     RayCounts counts;
@@ -156,7 +155,6 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   }
   if (result.non_finite_samples > 0)
     result.first_non_finite_pixel = {int(first_non_finite % std::uint64_t(width)), int(first_non_finite / std::uint64_t(width))};
-  result.cancelled = result.tiles_finished() < tile_count;
   return result;
 }
 

@@ -25,7 +25,7 @@ void check_color(const Scene& scene, const std::string& where, const Color& c) {
 
 std::optional<CameraProblem> find_camera_problem(const Camera& camera) {
   if (!finite(camera.eye)) return CameraProblem{"eye", "eye is not finite"};
-  if (std::max({std::abs(camera.eye.x), std::abs(camera.eye.y), std::abs(camera.eye.z)}) > kMaxEyeCoordinate)
+  if (max_abs_coordinate(camera.eye) > kMaxEyeCoordinate)
     return CameraProblem{"eye", fmt::format("eye ({:g}, {:g}, {:g}) lies beyond +-{:g}, where float32 rays are no "
                                             "longer valid", camera.eye.x, camera.eye.y, camera.eye.z, kMaxEyeCoordinate)};
   if (!finite(camera.target)) return CameraProblem{"target", "target is not finite"};

@@ -38,16 +38,17 @@ struct RenderResult {
   EffectsPlan plan;  // what the render skipped, decided by plan_effects before the first ray
   RayCounts rays;
   double seconds = 0.0;  // wall-clock time of the render loop
-  // Tiles (RenderOptions::tile_size squares, row-major) and which of them were finished: all of
-  // them unless the render was cancelled. Unfinished tiles are black in `image`.
-  int tile_count = 0;
+  // One flag per tile (RenderOptions::tile_size squares, row-major): 1 when finished, which all
+  // are unless the render was cancelled. Unfinished tiles are black in `image`.
   std::vector<std::uint8_t> tile_done;
-  bool cancelled = false;
   // Samples whose colour was NaN or infinite, replaced by black (a guard: shading should never
   // produce one), and the first such pixel in row-major order.
   std::uint64_t non_finite_samples = 0;
   std::optional<std::pair<int, int>> first_non_finite_pixel;  // (x, y)
+
+  int tile_count() const { return int(tile_done.size()); }
   int tiles_finished() const;
+  bool cancelled() const { return tiles_finished() < tile_count(); }
 };
 
 // Throws InputError naming scene.source when the image a render of `scene` allocates (float RGB,

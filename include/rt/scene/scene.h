@@ -3,6 +3,8 @@
 // child nodes and models (geometry + material), plus lights, a camera and render settings.
 // Loaders build it; flatten_scene() turns it into world-space triangle buffers.
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -120,6 +122,9 @@ inline constexpr int kMaxReflectionDepth = 1000;
 // within kMaxWorldCoordinate, which leaves room for an eye framing that geometry from outside.
 inline constexpr double kMaxWorldCoordinate = 1e17;
 inline constexpr double kMaxEyeCoordinate = 1e18;
+
+// The largest |component| of a world-space point, compared with the limits above.
+inline double max_abs_coordinate(const Vec3d& p) { return std::max({std::abs(p.x), std::abs(p.y), std::abs(p.z)}); }
 
 // Image and integrator settings carried by a scene file; CLI flags may override them.
 struct RenderSettings {
