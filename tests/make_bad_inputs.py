@@ -159,6 +159,15 @@ w('gltf-missing-buffer-file.gltf', dump(gltf_doc(uri="does-not-exist.bin")))
 w('gltf-bad-base64.gltf', dump(gltf_doc(uri="data:application/octet-stream;base64,!!!!not base64!!!!")))
 w('gltf-singular-scale.gltf', dump(gltf_doc(nodes=[{"mesh": 0, "scale": [1, 0, 1]}])))
 w('gltf-node-index-out-of-range.gltf', dump(dict(gltf_doc(), scenes=[{"nodes": [5]}])))
+# An image in a bufferView that runs past its buffer: tinygltf 2.7.0 hands the loader a pointer it
+# never checked (the fuzzer found the heap overflow).
+textured = gltf_doc()
+textured["meshes"][0]["primitives"][0]["material"] = 0
+textured["materials"] = [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]
+textured["textures"] = [{"source": 0}]
+textured["images"] = [{"bufferView": 2, "mimeType": "image/png"}]
+textured["bufferViews"].append({"buffer": 0, "byteOffset": 40, "byteLength": 4333})
+w('gltf-image-view-outside-buffer.gltf', dump(textured))
 def glb(json_bytes, bin_bytes, total=None, json_len=None):
     json_bytes += b' ' * (-len(json_bytes) % 4)
     bin_bytes += b'\0' * (-len(bin_bytes) % 4)

@@ -5,10 +5,16 @@
 namespace rt {
 
 namespace {
+// Reasons quote the input (a parser's "last read" token can be a 30 KB line); past this many
+// bytes the quote is cut so the error stays one readable line.
+constexpr std::size_t kMaxReasonBytes = 400;
+
 std::string format_input_error(const std::string& file, const std::string& where, const std::string& reason) {
   std::string message = file;
   if (!where.empty()) message += ":" + where;
-  return message + ": " + reason;
+  if (reason.size() <= kMaxReasonBytes) return message + ": " + reason;
+  return fmt::format("{}: {} [... {} more bytes]", message, reason.substr(0, kMaxReasonBytes),
+                     reason.size() - kMaxReasonBytes);
 }
 }  // namespace
 
@@ -44,6 +50,12 @@ std::string printable_line(std::string_view text) {
     }
   }
   return out;
+}
+
+std::string read_digits(std::string_view text, std::size_t& pos) {
+  const std::size_t start = pos;
+  while (pos < text.size() && text[pos] >= '0' && text[pos] <= '9') ++pos;
+  return std::string(text.substr(start, pos - start));
 }
 
 }  // namespace rt

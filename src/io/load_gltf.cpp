@@ -8,7 +8,6 @@
 #include <fstream>
 #include <map>
 #include <numbers>
-#include <regex>
 
 #include <fmt/format.h>
 #include <glm/gtc/matrix_transform.hpp>
@@ -36,12 +35,15 @@ constexpr std::size_t kMaxAccessorCount = std::size_t(1) << 28;
 constexpr int kCameraImageHeight = 480;
 
 // Encoded bytes of images, by image index. tinygltf hands them (external files too) to its image
-// loader callback, which keeps them instead of decoding: OpenImageIO decodes. Only those embedded
-// as data: URIs or bufferViews are used; external files are read by path.
+// loader callback, which keeps them instead of decoding: OpenImageIO decodes. Only data: URIs are
+// kept here; external files are read by path and bufferViews by GltfReader::read_texture.
 using EmbeddedImages = std::map<int, std::shared_ptr<const std::string>>;
 
-bool keep_encoded_image(tinygltf::Image*, const int index, std::string*, std::string*, int, int,
+bool keep_encoded_image(tinygltf::Image* image, const int index, std::string*, std::string*, int, int,
                         const unsigned char* bytes, int size, void* user_data) {
+  // For a bufferView image, tinygltf 2.7.0 passes a pointer and length it never checked against
+  // the buffer (fuzzing found the heap overflow): those bytes are not touched here.
+  if (image->bufferView >= 0) return true;
   auto& images = *static_cast<EmbeddedImages*>(user_data);
   images[index] = std::make_shared<const std::string>(reinterpret_cast<const char*>(bytes), static_cast<std::size_t>(size));
   return true;
@@ -74,9 +76,9 @@ struct Placed {
 // uses and naming the JSON path of each problem.
 class GltfReader {
  public:
-  GltfReader(std::string path, const tinygltf::Model& model, const EmbeddedImages& embedded, const GltfOptions& options,
+  GltfReader(std::string path, const tinygltf::Model& model, EmbeddedImages embedded, const GltfOptions& options,
              LoadReport* report)
-      : path_(std::move(path)), directory_(fs::path(path_).parent_path()), gltf_(model), embedded_(embedded),
+      : path_(std::move(path)), directory_(fs::path(path_).parent_path()), gltf_(model), embedded_(std::move(embedded)),
         options_(options), report_(report) {}
 
   Scene read();
@@ -95,6 +97,8 @@ class GltfReader {
     return array[static_cast<std::size_t>(index)];
   }
 
+  const unsigned char* view_bytes(int view_index, std::size_t offset, std::size_t n, std::size_t stride,
+                                  std::size_t element_size, const std::string& where) const;
   std::vector<double> read_accessor(int index, const std::string& where, int components);
   std::vector<std::uint32_t> read_indices(int index, const std::string& where, std::size_t vertex_count);
   std::shared_ptr<const TriangleMesh> read_primitive(int mesh, int primitive, bool want_texcoords);
@@ -110,7 +114,7 @@ class GltfReader {
   std::string path_;
   fs::path directory_;
   const tinygltf::Model& gltf_;
-  const EmbeddedImages& embedded_;
+  EmbeddedImages embedded_;  // data: URI images from the callback, bufferView images as first read
   const GltfOptions& options_;
   std::map<int, std::vector<Model>> mesh_models_;
   std::map<int, std::uint32_t> material_of_;   // glTF material (-1: default) -> Scene::materials index
@@ -151,6 +155,24 @@ double read_component(const unsigned char* p, int type, bool normalized) {
   }
 }
 
+// Bytes [offset, offset + (n - 1) stride + element_size) of bufferView `view_index`, after checking
+// that they lie inside the view and the view inside its buffer; `where` names the JSON path that
+// asked for them.
+const unsigned char* GltfReader::view_bytes(int view_index, std::size_t offset, std::size_t n, std::size_t stride,
+                                            std::size_t element_size, const std::string& where) const {
+  const tinygltf::BufferView& view = element(gltf_.bufferViews, view_index, "bufferView", where);
+  const std::string view_at = child("/bufferViews", static_cast<std::size_t>(view_index));
+  const tinygltf::Buffer& buffer = element(gltf_.buffers, view.buffer, "buffer", child(view_at, "buffer"));
+  if (view.byteOffset > buffer.data.size() || view.byteLength > buffer.data.size() - view.byteOffset)
+    fail(view_at, fmt::format("bytes {}..{} lie outside buffer {} ({} bytes)", view.byteOffset,
+                              view.byteOffset + view.byteLength, view.buffer, buffer.data.size()));
+  const std::size_t needed = n == 0 ? 0 : offset + (n - 1) * stride + element_size;
+  if (n > 0 && (offset > view.byteLength || needed > view.byteLength || (n - 1) * stride / stride != n - 1))
+    fail(where, fmt::format("{} elements of {} bytes (stride {}) from byte {} need {} bytes; bufferView {} has {}", n,
+                            element_size, stride, offset, needed, view_index, view.byteLength));
+  return buffer.data.data() + view.byteOffset + offset;
+}
+
 // Reads accessor `index` (referenced from `where`) as `components` doubles per element, sparse
 // substitutions applied. Every byte range is checked against its bufferView and buffer.
 std::vector<double> GltfReader::read_accessor(int index, const std::string& where, int components) {
@@ -162,22 +184,6 @@ std::vector<double> GltfReader::read_accessor(int index, const std::string& wher
     fail(child(at, "type"), fmt::format("expected {} components per element (used by {})", components, where));
   if (accessor.count > kMaxAccessorCount) fail(child(at, "count"), fmt::format("count {} exceeds the supported maximum {} (2^28)", accessor.count, kMaxAccessorCount));
   const std::size_t count = accessor.count, element_size = static_cast<std::size_t>(size * components);
-
-  // Bytes [offset, offset + (n - 1) stride + element_size) of bufferView `view` must exist.
-  auto view_bytes = [&](int view_index, std::size_t offset, std::size_t n, std::size_t stride, std::size_t elem,
-                        const std::string& view_where) -> const unsigned char* {
-    const tinygltf::BufferView& view = element(gltf_.bufferViews, view_index, "bufferView", view_where);
-    const std::string view_at = child("/bufferViews", static_cast<std::size_t>(view_index));
-    const tinygltf::Buffer& buffer = element(gltf_.buffers, view.buffer, "buffer", child(view_at, "buffer"));
-    if (view.byteOffset > buffer.data.size() || view.byteLength > buffer.data.size() - view.byteOffset)
-      fail(view_at, fmt::format("bytes {}..{} lie outside buffer {} ({} bytes)", view.byteOffset,
-                                view.byteOffset + view.byteLength, view.buffer, buffer.data.size()));
-    const std::size_t needed = n == 0 ? 0 : offset + (n - 1) * stride + elem;
-    if (n > 0 && (offset > view.byteLength || needed > view.byteLength || (n - 1) * stride / stride != n - 1))
-      fail(view_where, fmt::format("{} elements of {} bytes (stride {}) from byte {} need {} bytes; bufferView {} has {}",
-                                   n, elem, stride, offset, needed, view_index, view.byteLength));
-    return buffer.data.data() + view.byteOffset + offset;
-  };
 
   std::vector<double> values(count * components, 0.0);
   if (accessor.bufferView >= 0) {
@@ -368,6 +374,16 @@ Texture GltfReader::read_texture(const tinygltf::TextureInfo& info, const std::s
   Texture result;
   if (!image.uri.empty()) {  // tinygltf keeps the uri of external files only, not of data: URIs
     result.path = (directory_ / percent_decode(image.uri)).string();
+  } else if (image.bufferView >= 0) {
+    auto [it, inserted] = embedded_.try_emplace(texture.source);
+    if (inserted) {
+      const std::string view_at = child(child("/images", static_cast<std::size_t>(texture.source)), "bufferView");
+      const std::size_t length = element(gltf_.bufferViews, image.bufferView, "bufferView", view_at).byteLength;
+      const unsigned char* bytes = view_bytes(image.bufferView, 0, length, 1, 1, view_at);
+      it->second = std::make_shared<const std::string>(reinterpret_cast<const char*>(bytes), length);
+    }
+    result.encoded = it->second;
+    result.path = fmt::format("{}#/images/{}", path_, texture.source);
   } else if (auto it = embedded_.find(texture.source); it != embedded_.end()) {
     result.encoded = it->second;
     result.path = fmt::format("{}#/images/{}", path_, texture.source);
@@ -726,12 +742,26 @@ Scene GltfReader::read() {
 InputError tinygltf_error(const std::string& path, const std::string& message) {
   std::string line = message.substr(0, message.find('\n'));
   if (line.empty()) line = "cannot parse glTF";
-  std::smatch match;
   // tinygltf passes on nlohmann's exception text; say it the way the native JSON loader does.
-  if (std::regex_search(line, match, std::regex(R"(parse error at line (\d+), column (\d+): (.*))")))
-    return InputError(path, match[1].str() + ":" + match[2].str(), "JSON syntax error: " + match[3].str());
-  if (std::regex_search(line, match, std::regex(R"((buffer|image|bufferView|accessor)\[(\d+)\])")))
-    return InputError(path, fmt::format("/{}s/{}", match[1].str(), match[2].str()), line);
+  const std::string syntax = "parse error at line ", column_label = ", column ";
+  if (const std::size_t at = line.find(syntax); at != std::string::npos) {
+    std::size_t pos = at + syntax.size();
+    const std::string row = read_digits(line, pos);
+    if (!row.empty() && line.compare(pos, column_label.size(), column_label) == 0) {
+      pos += column_label.size();
+      const std::string column = read_digits(line, pos);
+      if (!column.empty() && line.compare(pos, 2, ": ") == 0)
+        return InputError(path, row + ":" + column, "JSON syntax error: " + line.substr(pos + 2));
+    }
+  }
+  for (std::size_t at = 0; at < line.size(); ++at)
+    for (const std::string name : {"buffer", "bufferView", "image", "accessor"})
+      if (line.compare(at, name.size() + 1, name + "[") == 0) {
+        std::size_t pos = at + name.size() + 1;
+        const std::string index = read_digits(line, pos);
+        if (!index.empty() && pos < line.size() && line[pos] == ']')
+          return InputError(path, fmt::format("/{}s/{}", name, index), line);
+      }
   const std::string not_found = "File not found : ";
   if (line.rfind(not_found, 0) == 0) {
     std::ifstream in(path, std::ios::binary);
@@ -806,7 +836,7 @@ Scene load_gltf_scene(const std::string& path, const GltfOptions& options, LoadR
                          : loader.LoadASCIIFromFile(&model, &errors, &warnings, path);
   if (!ok || !errors.empty()) throw tinygltf_error(path, errors);
 
-  Scene scene = GltfReader(path, model, embedded, options, report).read();
+  Scene scene = GltfReader(path, model, std::move(embedded), options, report).read();
   validate_scene(scene);
   return scene;
 }

@@ -6,7 +6,6 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <regex>
 #include <set>
 #include <sstream>
 #include <unordered_map>
@@ -138,8 +137,12 @@ std::size_t find_face_line(const std::string& path, std::size_t skip, std::size_
 // index. line 12.)"; keep the line number apart and say what is wrong in plain words.
 [[noreturn]] void fail_parse(const std::string& path, const std::string& message) {
   const std::string text = message.substr(0, message.find('\n'));
-  std::smatch match;
-  const std::string line = std::regex_search(text, match, std::regex(R"(line:? (\d+))")) ? match[1].str() : "";
+  std::string line;  // the digits after the first "line N" or "line: N"
+  for (std::size_t at = text.find("line"); at != std::string::npos && line.empty(); at = text.find("line", at + 1)) {
+    std::size_t pos = at + 4;
+    if (pos < text.size() && text[pos] == ':') ++pos;
+    if (pos < text.size() && text[pos] == ' ') line = read_digits(text, ++pos);
+  }
   std::string reason = text.empty() ? "cannot parse OBJ" : text;
   if (text.find("`f' line") != std::string::npos)
     reason = "bad face: a vertex index is 0 or not a number (OBJ indices start at 1)";
@@ -162,9 +165,14 @@ ObjFile read_obj(const std::string& path) {
     fail_parse(path, err);
   obj.missing_libraries = mtl_reader.missing;
   std::set<std::string> unknown;
-  const std::regex unknown_material(R"(material \[ '(.*)' \] not found in \.mtl)");
-  for (auto it = std::sregex_iterator(warn.begin(), warn.end(), unknown_material); it != std::sregex_iterator(); ++it)
-    if (unknown.insert((*it)[1].str()).second) obj.unknown_materials.push_back((*it)[1].str());
+  std::istringstream warnings(warn);
+  const std::string before = "material [ '", after = "' ] not found in .mtl";
+  for (std::string w; std::getline(warnings, w);) {
+    const std::size_t start = w.find(before), end = w.rfind(after);
+    if (start == std::string::npos || end == std::string::npos || end < start + before.size()) continue;
+    std::string name = w.substr(start + before.size(), end - start - before.size());
+    if (unknown.insert(name).second) obj.unknown_materials.push_back(std::move(name));
+  }
   obj.position_count = obj.attrib.vertices.size() / 3;
   obj.normal_count = obj.attrib.normals.size() / 3;
   // OBJ positions are world space; checked before a camera is framed on them (rt/scene/scene.h).
