@@ -221,14 +221,14 @@ void user_occluded(const RTCOccludedFunctionNArguments* args) {
 
 }  // namespace
 
-struct EmbreeAccel::Impl {
+// Device-wide state, reached from Embree's callbacks. Accels sharing the device use it one after
+// another; each resets the error and the budget when it starts building.
+struct EmbreeDevice::Impl {
   RTCDevice device = nullptr;
-  RTCScene scene = nullptr;
-  UserGeometryData user_data;  // read by the user-geometry callbacks
   std::mutex error_mutex;
   std::string first_error;  // recorded by the callback; never thrown across Embree's frames
-  std::atomic<std::int64_t> memory_bytes{0};  // net bytes the device allocated (see memory_bytes())
-  std::int64_t memory_budget = 0;             // available_memory_bytes() when the build began
+  std::atomic<std::int64_t> memory_bytes{0};  // net bytes the device allocated
+  std::atomic<std::int64_t> memory_budget{0}; // largest memory_bytes allowed (see on_memory)
   std::atomic<std::int64_t> refused_bytes{0}; // the first allocation refused, 0 if none
 
   // Embree may call this from several threads: positive bytes for an allocation, negative for a
@@ -239,7 +239,7 @@ struct EmbreeAccel::Impl {
   static bool on_memory(void* user, ssize_t bytes, bool post) {
     auto* self = static_cast<Impl*>(user);
     const std::int64_t total = self->memory_bytes.fetch_add(bytes, std::memory_order_relaxed) + bytes;
-    if (bytes <= 0 || total <= self->memory_budget) return true;
+    if (bytes <= 0 || total <= self->memory_budget.load(std::memory_order_relaxed)) return true;
     std::int64_t none = 0;
     self->refused_bytes.compare_exchange_strong(none, bytes);
     if (!post) self->memory_bytes.fetch_sub(bytes, std::memory_order_relaxed);
@@ -253,20 +253,51 @@ struct EmbreeAccel::Impl {
       self->first_error = fmt::format("Embree: {} ({})", message ? message : "", error_name(code));
   }
 
-  void throw_if_failed(const char* step) {
+  // Before a build: no recorded error, and a budget of what is available now on top of what the
+  // device already holds.
+  void begin_build() {
+    std::lock_guard lock(error_mutex);
+    first_error.clear();
+    refused_bytes = 0;
+    memory_budget = memory_bytes.load() + std::int64_t(std::min<std::uint64_t>(available_memory_bytes(), INT64_MAX / 2));
+  }
+
+  void throw_if_failed(const char* step, std::int64_t baseline) {
     std::lock_guard lock(error_mutex);
     if (const std::int64_t refused = refused_bytes.load(); refused > 0)
       throw RuntimeError(fmt::format("{} failed: out of memory: Embree asked for {} more with {} in use; {} were "
                                      "available when the build began",
                                      step, format_bytes(std::uint64_t(refused)),
-                                     format_bytes(std::uint64_t(std::max<std::int64_t>(0, memory_bytes.load()))),
-                                     format_bytes(std::uint64_t(memory_budget))));
+                                     format_bytes(std::uint64_t(std::max<std::int64_t>(0, memory_bytes.load() - baseline))),
+                                     format_bytes(std::uint64_t(memory_budget.load() - baseline))));
     if (!first_error.empty()) throw RuntimeError(fmt::format("{} failed: {}", step, first_error));
   }
 
+  ~Impl() {
+    if (device) rtcReleaseDevice(device);
+  }
+};
+
+EmbreeDevice::EmbreeDevice() : impl_(std::make_unique<Impl>()) {
+  impl_->device = rtcNewDevice(nullptr);
+  if (!impl_->device)
+    throw RuntimeError(fmt::format("creating the Embree device failed: {}", error_name(rtcGetDeviceError(nullptr))));
+  rtcSetDeviceErrorFunction(impl_->device, &Impl::on_error, impl_.get());
+  rtcSetDeviceMemoryMonitorFunction(impl_->device, &Impl::on_memory, impl_.get());
+}
+
+EmbreeDevice::~EmbreeDevice() = default;
+
+struct EmbreeAccel::Impl {
+  std::shared_ptr<EmbreeDevice> owner;  // keeps the device alive as long as the scene
+  EmbreeDevice::Impl* device = nullptr;
+  std::int64_t baseline_bytes = 0;  // the device's memory_bytes when this accel began
+  RTCScene scene = nullptr;
+  UserGeometryData user_data;  // read by the user-geometry callbacks
+
   template <unsigned kGeometry>
   RTCGeometry new_user_geometry(std::size_t count, RTCBoundsFunction bounds) {
-    RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
+    RTCGeometry geometry = rtcNewGeometry(device->device, RTC_GEOMETRY_TYPE_USER);
     rtcSetGeometryUserPrimitiveCount(geometry, static_cast<unsigned>(count));
     rtcSetGeometryUserData(geometry, &user_data);
     rtcSetGeometryBoundsFunction(geometry, bounds, nullptr);
@@ -284,21 +315,19 @@ struct EmbreeAccel::Impl {
 
   ~Impl() {
     if (scene) rtcReleaseScene(scene);
-    if (device) rtcReleaseDevice(device);
   }
 };
 
 EmbreeAccel::EmbreeAccel(const FlatScene& flat, const AccelOptions& options) : impl_(std::make_unique<Impl>()) {
   if (flat.triangle_count() + flat.spheres.size() >= RTC_INVALID_GEOMETRY_ID)
     throw RuntimeError("scene has more primitives than Embree can number");
-  impl_->device = rtcNewDevice(nullptr);
-  if (!impl_->device)
-    throw RuntimeError(fmt::format("creating the Embree device failed: {}", error_name(rtcGetDeviceError(nullptr))));
-  rtcSetDeviceErrorFunction(impl_->device, &Impl::on_error, impl_.get());
-  impl_->memory_budget = std::int64_t(std::min<std::uint64_t>(available_memory_bytes(), INT64_MAX));
-  rtcSetDeviceMemoryMonitorFunction(impl_->device, &Impl::on_memory, impl_.get());
+  impl_->owner = options.embree_device ? options.embree_device : std::make_shared<EmbreeDevice>();
+  impl_->device = impl_->owner->impl_.get();
+  impl_->device->begin_build();
+  impl_->baseline_bytes = options.embree_device ? impl_->device->memory_bytes.load() : 0;  // own device: all of it
+  RTCDevice device = impl_->device->device;
 
-  impl_->scene = rtcNewScene(impl_->device);
+  impl_->scene = rtcNewScene(device);
   // The context filter orders the native triangle kernel's closest hits; user geometries order
   // their own; occlusion queries pass no filter.
   rtcSetSceneFlags(impl_->scene, static_cast<RTCSceneFlags>(
@@ -309,7 +338,7 @@ EmbreeAccel::EmbreeAccel(const FlatScene& flat, const AccelOptions& options) : i
   if (flat.triangle_count() > 0) {
     RTCGeometry geometry = nullptr;
     if (options.embree_kernel == EmbreeKernel::native) {
-      geometry = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+      geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
       // Shared buffers: Embree reads FlatScene's vectors in place. FlatScene guarantees one spare
       // Vec3f of capacity past the last vertex for Embree's 16-byte vertex loads.
       rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, flat.positions.data(), 0,
@@ -325,13 +354,14 @@ EmbreeAccel::EmbreeAccel(const FlatScene& flat, const AccelOptions& options) : i
     impl_->attach(impl_->new_user_geometry<kSphereGeometry>(flat.spheres.size(), &sphere_bounds), kSphereGeometry,
                   options.embree_quality);
   rtcCommitScene(impl_->scene);
-  impl_->throw_if_failed("building the Embree scene");
+  impl_->device->throw_if_failed("building the Embree scene", impl_->baseline_bytes);
 }
 
 EmbreeAccel::~EmbreeAccel() = default;
 
 std::size_t EmbreeAccel::memory_bytes() const {
-  return static_cast<std::size_t>(std::max<std::int64_t>(impl_->memory_bytes.load(std::memory_order_relaxed), 0));
+  const std::int64_t bytes = impl_->device->memory_bytes.load(std::memory_order_relaxed) - impl_->baseline_bytes;
+  return static_cast<std::size_t>(std::max<std::int64_t>(bytes, 0));
 }
 
 Hit EmbreeAccel::intersect(const Ray& ray) const {

@@ -1,299 +1,31 @@
 #include "rt/app/cli.h"
 
-#include <atomic>
-#include <chrono>
-#include <csignal>
 #include <cstdio>
-#include <filesystem>
+#include <cstdlib>
 #include <new>
 #include <optional>
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
-#include <nlohmann/json.hpp>
-#include <tbb/global_control.h>
-#include <tbb/info.h>
 
-#include "rt/accel/accel.h"
-#include "rt/app/progress.h"
 #include "rt/app/scene_options.h"
 #include "rt/core/error.h"
 #include "rt/core/memory.h"
-#include "rt/flatten/flatten.h"
-#include "rt/io/atomic_file.h"
-#include "rt/io/image_io.h"
-#include "rt/io/load_scene.h"
-#include "rt/render/render.h"
-#include "ray_budget.h"
+#include "commands.h"
 
 namespace rt {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-struct RenderArgs {
-  std::string scene_path;  // empty: built-in default scene
-  std::string output;
-  std::optional<int> width, height, max_depth;
-  std::string accel = "embree";
-  std::string embree_robust = "on";
-  std::string embree_quality = "medium";
-  std::string embree_kernel = "native";
-  int sphere_tessellation = 0;
-  std::string ray_offset = "robust";
-  int threads = 0;
-  std::uint64_t memory_limit = 0;  // bytes; 0: what the machine has available
-  int spp = 1;
-  std::string stats_path;
-  bool explain = false;
-  bool partial_output = false;      // on SIGINT/SIGTERM, write the finished tiles to <stem>.partial<ext>
-  std::vector<int> debug_pixel;     // x y: trace that pixel's ray tree instead of rendering
-  EffectsOptions effects;
-  bool quiet = false;
-  GltfOptions gltf;
-  SceneOptions scene;
-};
-
-Scene load_scene_or_default(const std::string& path, const GltfOptions& gltf, LoadReport* report) {
-  // --gltf-scene and --camera choose among what a glTF file holds; other formats have one of each.
-  if ((gltf.scene || !gltf.camera.empty()) && !is_gltf_path(path))
-    throw UsageError(fmt::format("--gltf-scene and --camera apply to .gltf/.glb scenes only, not '{}'",
-                                 path.empty() ? "<built-in default>" : path));
-  return path.empty() ? make_default_scene() : load_scene(path, gltf, report);
-}
-
-// What the loaders noted (glTF: Scene::notices) and what was made up for the file (LoadReport).
-void print_notices(const SceneOptions& options, const LoadReport& report, const Scene& scene) {
-  for (const std::string& notice : scene.notices) fmt::print(stderr, "rt: notice: {}\n", notice);
-  for (const std::string& notice : scene_notices(options, report, scene)) fmt::print(stderr, "rt: {}\n", notice);
-}
-
-// Output file when -o is absent: the scene's own "output", else "<scene stem>.png" in the working directory.
-std::string default_output(const Scene& scene, const std::string& scene_path) {
-  if (!scene.settings.output.empty()) return scene.settings.output;
-  if (scene_path.empty()) return "default.png";
-  return std::filesystem::path(scene_path).stem().string() + ".png";
-}
-
-void warn_about_dropped_triangles(const Scene& scene, const FlatScene& flat, bool quiet) {
-  if (flat.degenerate_triangles_dropped > 0 && !quiet)
-    fmt::print(stderr, "rt: warning: {}: dropped {} degenerate triangle(s) (zero area)\n", scene.source,
-               flat.degenerate_triangles_dropped);
-}
-
-// SIGINT and SIGTERM during the render loop: the handler only records the signal; the loop polls
-// the flag between rows of pixels and stops (render_image, RenderOptions::cancel).
-std::atomic<bool> interrupted{false};
-volatile std::sig_atomic_t interrupting_signal = 0;
-
-extern "C" void on_interrupt(int signal) {
-  interrupting_signal = signal;
-  interrupted.store(true, std::memory_order_relaxed);
-}
-
-// Installs on_interrupt for SIGINT and SIGTERM for its lifetime, then restores what was there.
-class ScopedInterruptHandler {
- public:
-  ScopedInterruptHandler() {
-    interrupted.store(false);
-    interrupting_signal = 0;
-    struct sigaction action {};
-    action.sa_handler = &on_interrupt;
-    sigemptyset(&action.sa_mask);
-    sigaction(SIGINT, &action, &previous_int_);
-    sigaction(SIGTERM, &action, &previous_term_);
-  }
-  ~ScopedInterruptHandler() {
-    sigaction(SIGINT, &previous_int_, nullptr);
-    sigaction(SIGTERM, &previous_term_, nullptr);
-  }
-  ScopedInterruptHandler(const ScopedInterruptHandler&) = delete;
-  ScopedInterruptHandler& operator=(const ScopedInterruptHandler&) = delete;
-
- private:
-  struct sigaction previous_int_ {}, previous_term_ {};
-};
-
-// "out.png" -> "out.partial.png": where --partial-output puts the finished tiles of an interrupted render.
-std::string partial_output_path(const std::string& output) {
-  const std::filesystem::path path(output);
-  return (path.parent_path() / (path.stem().string() + ".partial" + path.extension().string())).string();
-}
-
-int run_render(const RenderArgs& args) {
-  const auto start = Clock::now();
-  set_memory_limit(args.memory_limit);
-  const int threads = args.threads > 0 ? args.threads : tbb::info::default_concurrency();
-  // Limits Embree's BVH build (TBB tasks) as well as the render loop.
-  tbb::global_control thread_limit(tbb::global_control::max_allowed_parallelism, threads);
-  const AccelKind accel_kind = parse_accel_kind(args.accel);
-  AccelOptions accel_options;
-  accel_options.embree_robust = args.embree_robust == "on";
-  accel_options.embree_quality = parse_embree_quality(args.embree_quality);
-  accel_options.embree_kernel = parse_embree_kernel(args.embree_kernel);
-  const RayOffset ray_offset = parse_ray_offset(args.ray_offset);
-
-  LoadReport report;
-  Scene scene = load_scene_or_default(args.scene_path, args.gltf, &report);
-  if (args.width) scene.settings.width = *args.width;
-  if (args.height) scene.settings.height = *args.height;
-  if (args.max_depth) scene.settings.max_depth = *args.max_depth;
-  apply_scene_options(args.scene, report, scene);
-  validate_scene(scene);
-  const std::string output = args.output.empty() ? default_output(scene, args.scene_path) : args.output;
-  check_output_path(output);  // fail before rendering, not after
-  if (!args.stats_path.empty()) check_parent_directory_writable(args.stats_path);
-  check_render_memory(scene);
-  const double load_s = seconds_since(start);
-
-  auto phase_start = Clock::now();
-  FlattenOptions flatten_options;
-  flatten_options.sphere_tessellation = args.sphere_tessellation;
-  const FlatScene flat = flatten_scene(scene, flatten_options);
-  const double flatten_s = seconds_since(phase_start);
-  // Notes and warnings only once the scene has loaded and flattened: a failing run prints one line.
-  if (!args.quiet) print_notices(args.scene, report, scene);
-  warn_about_dropped_triangles(scene, flat, args.quiet);
-
-  phase_start = Clock::now();
-  const std::unique_ptr<Accel> accel = build_accel(accel_kind, flat, accel_options);
-  const double build_s = seconds_since(phase_start);
-
-  RenderOptions options;
-  options.threads = threads;
-  options.samples_per_pixel = args.spp;
-  options.ray_offset = ray_offset;
-  options.effects = args.effects;
-  if (!args.debug_pixel.empty()) {
-    for (const std::string& line : trace_pixel(scene, flat, *accel, options, args.debug_pixel[0], args.debug_pixel[1]))
-      fmt::print("{}\n", line);
-    return 0;
-  }
-  options.time_queries = args.explain || !args.stats_path.empty();
-  ProgressBar progress("rendering", !args.quiet);
-  options.on_progress = [&](double fraction) { progress.update(fraction); };
-  const ScopedInterruptHandler interrupt_handler;
-  options.cancel = &interrupted;
-  const RenderResult result = render_image(scene, flat, *accel, options);
-  progress.finish();
-  if (result.cancelled()) {
-    const int signal = interrupting_signal;
-    const std::string what = fmt::format("rt: interrupted by {} after {} of {} tiles", signal == SIGTERM ? "SIGTERM" : "SIGINT",
-                                         result.tiles_finished(), result.tile_count());
-    if (args.partial_output) {
-      const std::string partial = partial_output_path(output);
-      write_image(result.image, partial);
-      fmt::print(stderr, "{}; the finished tiles are in {} (unfinished tiles black); {} not written\n", what, partial,
-                 output);
-    } else {
-      fmt::print(stderr, "{}; nothing written (--partial-output keeps the finished tiles)\n", what);
-    }
-    return 128 + (signal == SIGTERM ? SIGTERM : SIGINT);
-  }
-  if (result.non_finite_samples > 0 && !args.quiet)
-    fmt::print(stderr, "rt: warning: {} sample(s) were NaN or infinite and were replaced by black; the first in pixel "
-               "({}, {}): see its ray tree with --debug-pixel {} {}\n", result.non_finite_samples,
-               result.first_non_finite_pixel->first, result.first_non_finite_pixel->second,
-               result.first_non_finite_pixel->first, result.first_non_finite_pixel->second);
-
-  phase_start = Clock::now();
-  write_image(result.image, output);
-  const double write_s = seconds_since(phase_start);
-  const double total_s = seconds_since(start);
-  const double mrays = result.rays.total() / std::max(result.seconds, 1e-9) / 1e6;
-
-  if (!args.stats_path.empty()) {
-    nlohmann::ordered_json stats;
-    stats["scene"] = args.scene_path.empty() ? "<built-in default>" : args.scene_path;
-    stats["output"] = output;
-    stats["accel"] = to_string(accel_kind);
-    if (accel_kind == AccelKind::embree)
-      stats["embree"] = {{"robust", accel_options.embree_robust},
-                         {"quality", to_string(accel_options.embree_quality)},
-                         {"kernel", to_string(accel_options.embree_kernel)}};
-    stats["ray_offset"] = to_string(ray_offset);
-    stats["threads"] = threads;
-    stats["image"] = {{"width", scene.settings.width}, {"height", scene.settings.height}};
-    stats["max_depth"] = scene.settings.max_depth;
-    stats["samples_per_pixel"] = args.spp;
-    stats["triangles"] = flat.triangle_count();
-    stats["spheres"] = flat.spheres.size();
-    stats["sphere_tessellation"] = args.sphere_tessellation;
-    stats["degenerate_triangles_dropped"] = flat.degenerate_triangles_dropped;
-    stats["non_finite_samples"] = result.non_finite_samples;
-    stats["lights"] = scene.lights.size();
-    stats["rays"] = {{"camera", result.rays.camera},
-                     {"shadow", result.rays.shadow},
-                     {"reflection", result.rays.reflection},
-                     {"total", result.rays.total()}};
-    stats["effects"] = effects_json(result.plan, scene);
-    stats["ray_budget"] = ray_budget_json(result, scene);
-    stats["mrays_per_s"] = mrays;
-    stats["time_s"] = {{"load", load_s},     {"flatten", flatten_s}, {"build", build_s},
-                       {"render", result.seconds}, {"write", write_s},   {"total", total_s}};
-    write_text_file_atomically(args.stats_path, stats.dump(2) + "\n");
-  }
-  if (args.explain) fmt::print("{}", explain_render(result, scene));
-  if (!args.quiet)
-    fmt::print(
-        "{}: {}x{}, {} triangles, {} spheres, {} lights, {:.3f} s render, {:.3f} s total, {:.2f} Mrays/s ({}, {} "
-        "threads)\n",
-        output, scene.settings.width, scene.settings.height, flat.triangle_count(), flat.spheres.size(),
-        scene.lights.size(), result.seconds, total_s, mrays, to_string(accel_kind), threads);
-  return 0;
-}
-
-int run_info(const std::string& scene_path, const GltfOptions& gltf, const SceneOptions& scene_options,
-             const EffectsOptions& effects) {
-  LoadReport report;
-  Scene scene = load_scene_or_default(scene_path, gltf, &report);
-  apply_scene_options(scene_options, report, scene);
-  validate_scene(scene);
-  const FlatScene flat = flatten_scene(scene);
-  print_notices(scene_options, report, scene);
-  std::size_t models = 0;
-  for (const Node& node : scene.nodes) models += node.models.size();
-  const Bounds3d bounds = flat_bounds(flat);
-  const Camera& c = scene.camera;
-  fmt::print("scene       {}\n", scene.source);
-  fmt::print("image       {}x{}, max depth {}, background ({}, {}, {})\n", scene.settings.width,
-             scene.settings.height, scene.settings.max_depth, scene.settings.background.r,
-             scene.settings.background.g, scene.settings.background.b);
-  fmt::print("camera      eye ({}, {}, {}), target ({}, {}, {}), up ({}, {}, {}), fovy {} deg\n", c.eye.x, c.eye.y,
-             c.eye.z, c.target.x, c.target.y, c.target.z, c.up.x, c.up.y, c.up.z, c.fovy_degrees);
-  fmt::print("graph       {} nodes, {} models\n", scene.nodes.size(), models);
-  fmt::print("geometry    {} triangles, {} vertices, {} degenerate triangles dropped, {} spheres (exact)\n",
-             flat.triangle_count(), flat.positions.size(), flat.degenerate_triangles_dropped, flat.spheres.size());
-  if (!bounds.empty())
-    fmt::print("bounds      ({:.7g}, {:.7g}, {:.7g}) .. ({:.7g}, {:.7g}, {:.7g})\n", bounds.lo.x, bounds.lo.y,
-               bounds.lo.z, bounds.hi.x, bounds.hi.y, bounds.hi.z);
-  fmt::print("materials   {}\n", scene.materials.size());
-  for (const Material& m : scene.materials)
-    fmt::print("  {:<16} diffuse ({}, {}, {}), specular ({}, {}, {}), shininess {}{}\n", m.name, m.diffuse.r,
-               m.diffuse.g, m.diffuse.b, m.specular.r, m.specular.g, m.specular.b, m.shininess,
-               m.diffuse_texture.empty() ? "" : ", texture " + m.diffuse_texture.path);
-  fmt::print("lights      {}\n", scene.lights.size());
-  for (const Light& l : scene.lights) {
-    if (l.is_directional())
-      fmt::print("  directional towards ({}, {}, {}), colour ({}, {}, {})\n", l.position.x, l.position.y,
-                 l.position.z, l.color.r, l.color.g, l.color.b);
-    else
-      fmt::print("  {} at ({}, {}, {}), colour ({}, {}, {}), attenuation ({}, {}, {}){}\n", l.is_spot() ? "spot" : "point",
-                 l.position.x, l.position.y, l.position.z, l.color.r, l.color.g, l.color.b, l.attenuation.x,
-                 l.attenuation.y, l.attenuation.z,
-                 l.is_spot() ? fmt::format(", towards ({}, {}, {}), cone cosines {} .. {}", l.spot_direction.x,
-                                           l.spot_direction.y, l.spot_direction.z, l.spot_cos_inner, l.spot_cos_outer)
-                             : "");
-  }
-  fmt::print("effects     (default ray offsets; see rt render --explain for the ray budget)\n");
-  for (const std::string& line : describe_plan(plan_effects(scene, flat, RayOffset{}, effects), scene))
-    fmt::print("  {}\n", line);
-  return 0;
+// "K/N" with 1 <= K <= N: --tile's argument.
+std::string parse_tile(const std::string& text, RegionRequest& region) {
+  int k = 0, n = 0;
+  char rest = 0;
+  if (std::sscanf(text.c_str(), "%d/%d%c", &k, &n, &rest) != 2 || k < 1 || n < 1 || k > n)
+    return "expected K/N with 1 <= K <= N, e.g. 3/16";
+  region.k = k;
+  region.n = n;
+  return "";
 }
 
 }  // namespace
@@ -305,7 +37,9 @@ int run_cli(int argc, char** argv) {
 
   RenderArgs render_args;
   CLI::App* render = app.add_subcommand("render", "Render a scene (the built-in default scene when none is given)");
-  render->add_option("scene", render_args.scene_path, "Scene file (.json, .test, .gltf, .glb, .obj)");
+  render->add_option("scene", render_args.scene_paths,
+                     "Scene files (.json, .test, .gltf, .glb, .obj); several make a batch, rendered one after "
+                     "another in one process (a failing scene is reported and the others go on)");
   const auto add_gltf_options = [](CLI::App* command, GltfOptions& gltf) {
     command->add_option("--gltf-scene", gltf.scene, "glTF only: index of the scene to show (default: the file's default)")
         ->check(CLI::NonNegativeNumber);
@@ -317,6 +51,33 @@ int run_cli(int argc, char** argv) {
   render->add_option("-o,--output", render_args.output,
                      "Output image; format by extension (png, jpg, exr, hdr, tif, ...). "
                      "Default: the scene's \"output\", else <scene name>.png");
+  render->add_option("--outdir", render_args.outdir,
+                     "Write each image to DIR/<scene name>.png (created if missing), ignoring the scenes' own "
+                     "output names; regions: DIR/<scene name>.tile-K-of-N.exr");
+  render->add_flag("--skip-existing", render_args.skip_existing,
+                   "Skip scenes whose output file exists (outputs appear only when complete, so an interrupted "
+                   "batch resumes where it stopped)");
+  render->add_option_function<std::vector<int>>(
+            "--crop",
+            [&render_args](const std::vector<int>& v) {
+              render_args.region.crop = PixelRegion{v[0], v[1], v[2], v[3]};
+              if (render_args.region.crop->empty() || v[0] < 0 || v[1] < 0)
+                throw CLI::ValidationError("--crop", "expected X0 Y0 X1 Y1 with 0 <= X0 < X1 and 0 <= Y0 < Y1");
+            },
+            "Render only pixels [X0, X1) x [Y0, Y1) of the image, each exactly as in the whole image; an .exr "
+            "output keeps their place (data window) for rt merge. Default output: <scene name>.crop-X0-Y0-X1-Y1.exr")
+      ->expected(4)
+      ->type_name("X0 Y0 X1 Y1");
+  render->add_option_function<std::string>(
+            "--tile",
+            [&render_args](const std::string& text) {
+              if (const std::string problem = parse_tile(text, render_args.region); !problem.empty())
+                throw CLI::ValidationError("--tile", problem);
+            },
+            "Render tile K (1..N) of N bands of whole rows, for rt merge (e.g. a Slurm job array: --tile "
+            "$SLURM_ARRAY_TASK_ID/N). Output: OpenEXR, default <scene name>.tile-K-of-N.exr")
+      ->type_name("K/N")
+      ->excludes("--crop");
   render->add_option("--width", render_args.width, "Image width in pixels")->check(CLI::Range(1, kMaxImageSide));
   render->add_option("--height", render_args.height, "Image height in pixels")->check(CLI::Range(1, kMaxImageSide));
   render->add_option("--max-depth", render_args.max_depth, "Reflection depth (0 = no reflections)")
@@ -395,6 +156,15 @@ int run_cli(int argc, char** argv) {
   render->add_flag("-q,--quiet", render_args.quiet, "No progress bar, summary line, warnings or notes");
   add_scene_options(*render, render_args.scene);
 
+  std::vector<std::string> merge_paths;
+  std::string merge_output;
+  bool merge_quiet = false;
+  CLI::App* merge = app.add_subcommand("merge", "Stitch region files (rt render --tile/--crop, .exr) into the whole image, "
+                                                "checking they come from one scene and settings and cover it exactly once");
+  merge->add_option("regions", merge_paths, "Region files (.exr)")->required();
+  merge->add_option("-o,--output", merge_output, "Output image; format by extension (png, exr, ...)")->required();
+  merge->add_flag("-q,--quiet", merge_quiet, "No summary line");
+
   std::string info_path;
   GltfOptions info_gltf;
   CLI::App* info = app.add_subcommand("info", "Print what a scene contains (the default scene when none is given)");
@@ -414,6 +184,7 @@ int run_cli(int argc, char** argv) {
 
   try {
     if (*render) return run_render(render_args);
+    if (*merge) return run_merge(merge_paths, merge_output, merge_quiet);
     if (*info) return run_info(info_path, info_gltf, info_scene, info_effects);
   } catch (const UsageError& error) {
     fmt::print(stderr, "rt: error: {}\n", printable_line(error.what()));

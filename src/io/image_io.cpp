@@ -64,10 +64,19 @@ void check_output_path(const std::string& path) {
   check_parent_directory_writable(path);
 }
 
-void write_image(const Image& image, const std::string& path) {
+void write_image(const Image& image, const std::string& path, const ImageHeader& header) {
   auto output = create_output(path);
   const bool as_float = writes_float(path);
   OIIO::ImageSpec spec(image.width, image.height, 3, as_float ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8);
+  if (header.data_window) {
+    spec.x = header.data_window->x0;
+    spec.y = header.data_window->y0;
+    spec.full_width = header.full_width;
+    spec.full_height = header.full_height;
+  }
+  for (const auto& [name, value] : header.attributes) spec.attribute(name, value);
+  // Lossless, so that merged regions equal a whole render bit for bit (OIIO's default is zip too).
+  if (lower_extension(path) == ".exr") spec.attribute("compression", "zip");
   std::vector<std::uint8_t> bytes;
   const void* data = image.pixels.data();
   if (!as_float) {
@@ -87,10 +96,21 @@ void write_image(const Image& image, const std::string& path) {
   write_file_atomically(path, std::string_view(reinterpret_cast<const char*>(encoded.data()), encoded.size()));
 }
 
-Image read_image(const std::string& path) {
+Image read_image(const std::string& path, ImageHeader* header) {
   auto input = OIIO::ImageInput::open(path);
   if (!input) throw InputError(path, "", fmt::format("cannot read image ({})", OIIO::geterror()));
   const OIIO::ImageSpec& spec = input->spec();
+  if (header) {
+    *header = ImageHeader{};
+    const PixelRegion data{spec.x, spec.y, spec.x + spec.width, spec.y + spec.height};
+    header->full_width = spec.full_width;
+    header->full_height = spec.full_height;
+    if (data != PixelRegion{spec.full_x, spec.full_y, spec.full_x + spec.full_width, spec.full_y + spec.full_height})
+      header->data_window = data;
+    for (const OIIO::ParamValue& p : spec.extra_attribs)
+      if (p.name().string().starts_with("rt:") && p.type() == OIIO::TypeDesc::STRING)
+        header->attributes.emplace_back(p.name().string(), p.get_string());
+  }
   const int channels = spec.nchannels;
   std::vector<float> data(static_cast<std::size_t>(spec.width) * spec.height * channels);
   if (!input->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, data.data()))

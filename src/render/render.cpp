@@ -48,21 +48,35 @@ bool is_timing_sample(int x, int y) { return (x + 3 * y) % kTimingStride == 0; }
 
 }  // namespace
 
-void check_render_memory(const Scene& scene) {
+namespace {
+
+PixelRegion checked_region(const Scene& scene, const std::optional<PixelRegion>& region) {
+  const int width = scene.settings.width, height = scene.settings.height;
+  if (!region) return full_region(width, height);
+  if (!region->inside(width, height))
+    throw InputError(scene.source, "", fmt::format("the region {} (x0 y0 x1 y1) is empty or outside the {}x{} image",
+                                                   to_string(*region), width, height));
+  return *region;
+}
+
+}  // namespace
+
+void check_render_memory(const Scene& scene, const std::optional<PixelRegion>& region) {
   // Per pixel: the float RGB image, its 8-bit copy and the encoded file, which write_image builds
   // in memory (at most the float size, for uncompressed EXR).
   constexpr std::uint64_t kBytesPerPixel = sizeof(Color) + 3 + sizeof(Color);
-  const std::uint64_t pixels = std::uint64_t(scene.settings.width) * std::uint64_t(scene.settings.height);
-  if (const auto shortfall = memory_shortfall(pixels * kBytesPerPixel))
-    throw InputError(scene.source, "", fmt::format("a {}x{} image {} ({} bytes per pixel)", scene.settings.width,
-                                                   scene.settings.height, *shortfall, kBytesPerPixel));
+  const PixelRegion pixels = checked_region(scene, region);
+  if (const auto shortfall = memory_shortfall(pixels.pixel_count() * kBytesPerPixel))
+    throw InputError(scene.source, "", fmt::format("a {}x{} image {} ({} bytes per pixel)", pixels.width(),
+                                                   pixels.height(), *shortfall, kBytesPerPixel));
 }
 
 RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel& accel,
                           const RenderOptions& options) {
-  check_render_memory(scene);
-  const int width = scene.settings.width, height = scene.settings.height;
-  const CameraFrame frame = make_camera_frame(scene.camera, width, height, scene.source);
+  check_render_memory(scene, options.region);
+  const int width = scene.settings.width;
+  const PixelRegion region = checked_region(scene, options.region);
+  const CameraFrame frame = make_camera_frame(scene.camera, width, scene.settings.height, scene.source);
   const TextureSampler textures(scene);
   RenderResult result;
   result.plan = plan_effects(scene, flat, options.ray_offset, options.effects);
@@ -70,10 +84,11 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   const ShadingContext timed_context{scene, flat, accel, result.plan, options.ray_offset, &textures, true};
   const int tile = std::max(1, options.tile_size);
   const int spp = std::max(1, options.samples_per_pixel);
-  const int tiles_x = (width + tile - 1) / tile, tiles_y = (height + tile - 1) / tile;
+  const int tiles_x = (region.width() + tile - 1) / tile, tiles_y = (region.height() + tile - 1) / tile;
   const int tile_count = tiles_x * tiles_y;
 
-  result.image = Image(width, height);
+  result.region = region;
+  result.image = Image(region.width(), region.height());
   result.tile_done.assign(std::size_t(tile_count), 0);
   struct ThreadState {
     RayCounts counts;
@@ -98,8 +113,9 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
     ThreadState& state = thread_states.local();
     RayCounts& counts = state.counts;
     for (int t = range.begin(); t != range.end(); ++t) {
-      const int x0 = (t % tiles_x) * tile, y0 = (t / tiles_x) * tile;
-      const int x1 = std::min(x0 + tile, width), y1 = std::min(y0 + tile, height);
+      const int x0 = region.x0 + (t % tiles_x) * tile, y0 = region.y0 + (t / tiles_x) * tile;
+      const int x1 = std::min(x0 + tile, region.x1), y1 = std::min(y0 + tile, region.y1);
+      const auto pixel_of = [&](int x, int y) -> Color& { return result.image.at(x - region.x0, y - region.y0); };
       bool abandoned = false;
       for (int y = y0; y < y1; ++y) {
         if (cancelled()) {
@@ -112,13 +128,13 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
           const std::uint64_t pixel = std::uint64_t(y) * std::uint64_t(width) + std::uint64_t(x);
           const std::uint64_t start = timed ? __rdtsc() : 0;
           if (spp == 1) {
-            result.image.at(x, y) = guarded(find_color(shading, ray_through_pixel(frame, x, y), 0, counts), state, pixel);
+            pixel_of(x, y) = guarded(find_color(shading, ray_through_pixel(frame, x, y), 0, counts), state, pixel);
           } else {
             Vec3d sum(0.0);  // linear RGB, double: the box filter's average
             for (int s = 0; s < spp; ++s)
               sum += Vec3d(guarded(find_color(shading, ray_through_pixel_sample(frame, x, y, s, spp), 0, counts),
                                    state, pixel));
-            result.image.at(x, y) = Color(sum / double(spp));
+            pixel_of(x, y) = Color(sum / double(spp));
           }
           counts.camera += std::uint64_t(spp);
           if (timed) counts.loop_ticks += __rdtsc() - start;
@@ -126,7 +142,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
       }
       if (abandoned) {  // unfinished tiles are black, whatever rows were done
         for (int y = y0; y < y1; ++y)
-          for (int x = x0; x < x1; ++x) result.image.at(x, y) = Color(0.0f);
+          for (int x = x0; x < x1; ++x) pixel_of(x, y) = Color(0.0f);
         continue;
       }
       result.tile_done[std::size_t(t)] = 1;

@@ -55,6 +55,8 @@ enum class EmbreeQuality { low, medium, high };
 enum class EmbreeKernel { native, watertight };
 
 // Options for building an Accel; the reference backends ignore the Embree ones.
+class EmbreeDevice;  // rt/accel/embree_accel.h
+
 struct AccelOptions {
   // RTC_SCENE_FLAG_ROBUST: Embree's watertight (Pluecker) triangle test and conservative box tests.
   // On by default: it removes Embree's misses along shared edges for a few per cent of time (see
@@ -62,6 +64,9 @@ struct AccelOptions {
   bool embree_robust = true;
   EmbreeQuality embree_quality = EmbreeQuality::medium;  // BVH build quality (RTCBuildQuality)
   EmbreeKernel embree_kernel = EmbreeKernel::native;
+  // A device to build in, shared by the accels of a batch (make_embree_device); null: the accel
+  // creates its own.
+  std::shared_ptr<EmbreeDevice> embree_device;
 };
 
 // Thread-safe after construction: many threads may query one Accel concurrently.

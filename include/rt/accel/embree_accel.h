@@ -9,7 +9,23 @@
 
 namespace rt {
 
-// One RTCDevice and one RTCScene holding a single geometry over `scene`'s triangles. With the
+// An Embree device (RTCDevice: Embree's thread pool and allocators). Several EmbreeAccels may
+// use one, one after another (not at the same time), as a batch of renders does; a device's
+// creation costs a few milliseconds (docs/render-farm.md).
+class EmbreeDevice {
+ public:
+  EmbreeDevice();  // throws RuntimeError if Embree cannot create a device
+  ~EmbreeDevice();
+  EmbreeDevice(const EmbreeDevice&) = delete;
+  EmbreeDevice& operator=(const EmbreeDevice&) = delete;
+
+ private:
+  friend class EmbreeAccel;
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// An RTCDevice and one RTCScene holding a single geometry over `scene`'s triangles. With the
 // native kernel it is an Embree triangle geometry sharing FlatScene's vertex and index buffers (no
 // copies); with the watertight kernel it is a user geometry whose callbacks run the reference's
 // double-precision watertight test on the same vertices, so hits equal the reference's exactly.
@@ -34,7 +50,8 @@ class EmbreeAccel final : public Accel {
 
   // Bytes Embree's device holds now (net of frees; the BVH, builder arenas and device state),
   // counted by a memory monitor callback (rtcSetDeviceMemoryMonitorFunction) from device creation
-  // on. FlatScene's vertex and index buffers are shared, not copied, and are not included.
+  // on (a shared device: from this accel's creation on). FlatScene's vertex and index buffers are
+  // shared, not copied, and are not included.
   std::size_t memory_bytes() const;
 
  private:

@@ -1,5 +1,5 @@
 #pragma once
-// The `rt` command line: `rt render`, `rt info`.
+// The `rt` command line: `rt render`, `rt merge`, `rt info`.
 
 namespace rt {
 

@@ -2,10 +2,13 @@
 // Image output through OpenImageIO, format chosen by the file extension.
 
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "rt/core/image.h"
+#include "rt/render/region.h"
 
 namespace rt {
 
@@ -23,14 +26,26 @@ bool writes_float(const std::string& path);
 // directory `path` names exists and is writable. Lets callers refuse a bad output before rendering.
 void check_output_path(const std::string& path);
 
+// Where an image's pixels lie in a larger image, and text attributes stored with them: what
+// OpenEXR keeps as the data window, the display window and string header attributes. Region files
+// (rt render --crop/--tile) carry them for rt merge.
+struct ImageHeader {
+  std::optional<PixelRegion> data_window;  // full-image pixels the image holds; unset: all of it
+  int full_width = 0, full_height = 0;     // the display window (with data_window)
+  std::vector<std::pair<std::string, std::string>> attributes;  // names start with "rt:"
+};
+
 // Writes `image` to `path` (png, jpg, exr, hdr, tif, bmp, ppm and any other format OIIO writes).
 // The file is written next to the destination under a temporary name and renamed into place,
-// so a failed write never leaves a partial file and never touches an existing one.
-// Throws InputError for an unknown extension, RuntimeError for I/O failures.
-void write_image(const Image& image, const std::string& path);
+// so a failed write never leaves a partial file and never touches an existing one. EXR keeps
+// `header` (other formats may drop it). Throws InputError for an unknown extension, RuntimeError
+// for I/O failures.
+void write_image(const Image& image, const std::string& path, const ImageHeader& header = {});
 
 // Reads any OIIO-readable image as float RGB (extra channels dropped, grey expanded); 8-bit data
-// is mapped to c / 255 without colour conversion. Throws InputError when unreadable.
-Image read_image(const std::string& path);
+// is mapped to c / 255 without colour conversion. When `header` is given it receives the data
+// window (set only if the file has one that differs from its display window), the display window
+// and the "rt:" string attributes. Throws InputError when unreadable.
+Image read_image(const std::string& path, ImageHeader* header = nullptr);
 
 }  // namespace rt

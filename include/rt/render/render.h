@@ -11,6 +11,7 @@
 
 #include "rt/accel/accel.h"
 #include "rt/core/image.h"
+#include "rt/render/region.h"
 #include "rt/render/shade.h"
 
 namespace rt {
@@ -31,18 +32,22 @@ struct RenderOptions {
   // When set and it becomes true (e.g. from a signal handler), the render stops within a row of
   // pixels: no tile is started after that and the tile in progress is abandoned.
   const std::atomic<bool>* cancel = nullptr;
+  // The pixels to render, in full-image coordinates; unset: the whole image. Each pixel is the
+  // same as in a render of the whole image, bit for bit (--crop, --tile, rt merge).
+  std::optional<PixelRegion> region;
 };
 
 struct RenderResult {
-  Image image;
+  Image image;          // the region's pixels: image.at(x - region.x0, y - region.y0) is pixel (x, y)
+  PixelRegion region;   // what was rendered, in full-image coordinates
   EffectsPlan plan;  // what the render skipped, decided by plan_effects before the first ray
   RayCounts rays;
   double seconds = 0.0;  // wall-clock time of the render loop
-  // One flag per tile (RenderOptions::tile_size squares, row-major): 1 when finished, which all
-  // are unless the render was cancelled. Unfinished tiles are black in `image`.
+  // One flag per tile (RenderOptions::tile_size squares over the region, row-major): 1 when
+  // finished, which all are unless the render was cancelled. Unfinished tiles are black in `image`.
   std::vector<std::uint8_t> tile_done;
   // Samples whose colour was NaN or infinite, replaced by black (a guard: shading should never
-  // produce one), and the first such pixel in row-major order.
+  // produce one), and the first such pixel in row-major order (full-image coordinates).
   std::uint64_t non_finite_samples = 0;
   std::optional<std::pair<int, int>> first_non_finite_pixel;  // (x, y)
 
@@ -51,13 +56,15 @@ struct RenderResult {
   bool cancelled() const { return tiles_finished() < tile_count(); }
 };
 
-// Throws InputError naming scene.source when the image a render of `scene` allocates (float RGB,
-// plus the 8-bit copy an output file needs) does not fit in available memory (rt/core/memory.h).
-// render_image checks it; callers may check earlier, before loading and building the rest.
-void check_render_memory(const Scene& scene);
+// Throws InputError naming scene.source when the image a render of `region` (default: the whole
+// image) allocates (float RGB, plus the 8-bit copy an output file needs) does not fit in available
+// memory (rt/core/memory.h). render_image checks it; callers may check earlier, before loading and
+// building the rest.
+void check_render_memory(const Scene& scene, const std::optional<PixelRegion>& region = {});
 
-// Renders scene.settings.width x height pixels. The image is bit-identical whatever the thread
-// count or tile order: each pixel depends only on its own ray. Throws InputError on a bad camera.
+// Renders options.region (default: all scene.settings.width x height pixels). The image is
+// bit-identical whatever the thread count, tile order or region: each pixel depends only on its
+// own rays. Throws InputError on a bad camera or a region outside the image.
 RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel& accel,
                           const RenderOptions& options);
 

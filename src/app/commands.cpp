@@ -1,0 +1,437 @@
+#include "commands.h"
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <new>
+#include <optional>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <tbb/global_control.h>
+#include <tbb/info.h>
+
+#include "rt/accel/accel.h"
+#include "rt/accel/embree_accel.h"
+#include "rt/app/progress.h"
+#include "rt/core/error.h"
+#include "rt/core/memory.h"
+#include "rt/flatten/flatten.h"
+#include "rt/io/atomic_file.h"
+#include "rt/io/image_io.h"
+#include "rt/io/load_scene.h"
+#include "rt/io/merge.h"
+#include "rt/render/fingerprint.h"
+#include "rt/render/render.h"
+#include "ray_budget.h"
+
+namespace rt {
+
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+Scene load_scene_or_default(const std::string& path, const GltfOptions& gltf, LoadReport* report) {
+  // --gltf-scene and --camera choose among what a glTF file holds; other formats have one of each.
+  if ((gltf.scene || !gltf.camera.empty()) && !is_gltf_path(path))
+    throw UsageError(fmt::format("--gltf-scene and --camera apply to .gltf/.glb scenes only, not '{}'",
+                                 path.empty() ? "<built-in default>" : path));
+  return path.empty() ? make_default_scene() : load_scene(path, gltf, report);
+}
+
+// What the loaders noted (glTF: Scene::notices) and what was made up for the file (LoadReport).
+void print_notices(const SceneOptions& options, const LoadReport& report, const Scene& scene) {
+  for (const std::string& notice : scene.notices) fmt::print(stderr, "rt: notice: {}\n", notice);
+  for (const std::string& notice : scene_notices(options, report, scene)) fmt::print(stderr, "rt: {}\n", notice);
+}
+
+// Output file when -o is absent: the scene's own "output", else "<scene stem>.png" in the working directory.
+std::string default_output(const Scene& scene, const std::string& scene_path) {
+  if (!scene.settings.output.empty()) return scene.settings.output;
+  if (scene_path.empty()) return "default.png";
+  return std::filesystem::path(scene_path).stem().string() + ".png";
+}
+
+void warn_about_dropped_triangles(const Scene& scene, const FlatScene& flat, bool quiet) {
+  if (flat.degenerate_triangles_dropped > 0 && !quiet)
+    fmt::print(stderr, "rt: warning: {}: dropped {} degenerate triangle(s) (zero area)\n", scene.source,
+               flat.degenerate_triangles_dropped);
+}
+
+// SIGINT and SIGTERM during the render loop: the handler only records the signal; the loop polls
+// the flag between rows of pixels and stops (render_image, RenderOptions::cancel).
+std::atomic<bool> interrupted{false};
+volatile std::sig_atomic_t interrupting_signal = 0;
+
+extern "C" void on_interrupt(int signal) {
+  interrupting_signal = signal;
+  interrupted.store(true, std::memory_order_relaxed);
+}
+
+// Installs on_interrupt for SIGINT and SIGTERM for its lifetime, then restores what was there.
+class ScopedInterruptHandler {
+ public:
+  ScopedInterruptHandler() {
+    interrupted.store(false);
+    interrupting_signal = 0;
+    struct sigaction action {};
+    action.sa_handler = &on_interrupt;
+    sigemptyset(&action.sa_mask);
+    sigaction(SIGINT, &action, &previous_int_);
+    sigaction(SIGTERM, &action, &previous_term_);
+  }
+  ~ScopedInterruptHandler() {
+    sigaction(SIGINT, &previous_int_, nullptr);
+    sigaction(SIGTERM, &previous_term_, nullptr);
+  }
+  ScopedInterruptHandler(const ScopedInterruptHandler&) = delete;
+  ScopedInterruptHandler& operator=(const ScopedInterruptHandler&) = delete;
+
+ private:
+  struct sigaction previous_int_ {}, previous_term_ {};
+};
+
+// "out.png" -> "out.partial.png": where --partial-output puts the finished tiles of an interrupted render.
+std::string partial_output_path(const std::string& output) {
+  const std::filesystem::path path(output);
+  return (path.parent_path() / (path.stem().string() + ".partial" + path.extension().string())).string();
+}
+
+
+// The options that can change a pixel, beyond what the scene fingerprint covers (image size,
+// depth and camera are in the scene): region files carry them and rt merge compares them.
+// Threads, pruning, statistics and output names cannot change a pixel and are left out.
+std::string settings_text(const RenderArgs& args) {
+  return fmt::format("spp={} accel={} embree-robust={} embree-quality={} embree-kernel={} sphere-tessellation={} "
+                     "ray-offset={} min-throughput={} min-light={}",
+                     args.spp, args.accel, args.embree_robust, args.embree_quality, args.embree_kernel,
+                     args.sphere_tessellation, args.ray_offset, args.effects.min_throughput,
+                     args.effects.min_light_contribution);
+}
+
+// "scene.png" -> "scene.tile-2-of-8.exr" / "scene.crop-0-0-64-48.exr": a region's default name.
+std::string region_output(const std::string& output, const RegionRequest& region) {
+  const fs::path path(output);
+  const std::string part = region.n > 0 ? fmt::format("tile-{}-of-{}", region.k, region.n)
+                                        : fmt::format("crop-{}-{}-{}-{}", region.crop->x0, region.crop->y0,
+                                                      region.crop->x1, region.crop->y1);
+  return (path.parent_path() / (path.stem().string() + "." + part + ".exr")).string();
+}
+
+// Where a scene's image goes. With --outdir: DIR/<scene stem>.png, known before loading (so that
+// --skip-existing loads nothing); otherwise -o, else the scene's own "output", else
+// <scene stem>.png, which needs the loaded scene. Regions get region_output's name unless -o
+// names the file.
+std::optional<std::string> output_before_loading(const RenderArgs& args, const std::string& scene_path) {
+  if (!args.output.empty()) return args.output;
+  if (args.outdir.empty()) return std::nullopt;
+  const std::string stem = scene_path.empty() ? "default" : fs::path(scene_path).stem().string();
+  const std::string name = (fs::path(args.outdir) / (stem + ".png")).string();
+  return args.region.given() ? region_output(name, args.region) : name;
+}
+
+std::string output_after_loading(const RenderArgs& args, const std::string& scene_path, const Scene& scene) {
+  if (auto known = output_before_loading(args, scene_path)) return *known;
+  const std::string name = default_output(scene, scene_path);
+  return args.region.given() ? region_output(name, args.region) : name;
+}
+
+// What every scene of a batch renders with, the Embree device included.
+struct BatchContext {
+  int threads = 1;
+  AccelKind accel_kind = AccelKind::embree;
+  AccelOptions accel_options;
+  RayOffset ray_offset;
+};
+
+enum class Outcome { rendered, skipped, cancelled };
+
+// Renders one scene (or its region) to its output; returns the exit status of an interrupted
+// render through `interrupted_status`. Throws on any error.
+Outcome render_scene(const RenderArgs& args, const std::string& scene_path, const BatchContext& batch,
+                     int& interrupted_status) {
+  const auto start = Clock::now();
+  if (args.skip_existing)
+    if (const auto known = output_before_loading(args, scene_path); known && fs::exists(*known)) {
+      if (!args.quiet) fmt::print(stderr, "rt: {} exists, skipped (--skip-existing)\n", *known);
+      return Outcome::skipped;
+    }
+  LoadReport report;
+  Scene scene = load_scene_or_default(scene_path, args.gltf, &report);
+  if (args.width) scene.settings.width = *args.width;
+  if (args.height) scene.settings.height = *args.height;
+  if (args.max_depth) scene.settings.max_depth = *args.max_depth;
+  apply_scene_options(args.scene, report, scene);
+  validate_scene(scene);
+  const std::string output = output_after_loading(args, scene_path, scene);
+  if (args.skip_existing && fs::exists(output)) {
+    if (!args.quiet) fmt::print(stderr, "rt: {} exists, skipped (--skip-existing)\n", output);
+    return Outcome::skipped;
+  }
+  std::optional<PixelRegion> region = args.region.crop;
+  if (args.region.n > 0) {
+    if (args.region.n > scene.settings.height)
+      throw InputError(scene.source, "", fmt::format("--tile {}/{}: the {}-row image cannot be cut into {} tiles of whole "
+                                                     "rows (at most {})", args.region.k, args.region.n,
+                                                     scene.settings.height, args.region.n, scene.settings.height));
+    region = tile_region(args.region.k, args.region.n, scene.settings.width, scene.settings.height);
+    if (!writes_float(output) || fs::path(output).extension() != ".exr")
+      throw UsageError(fmt::format("--tile writes an OpenEXR region file for rt merge; '{}' is not .exr", output));
+  }
+  check_output_path(output);  // fail before rendering, not after
+  if (!args.stats_path.empty()) check_parent_directory_writable(args.stats_path);
+  check_render_memory(scene, region);
+  const double load_s = seconds_since(start);
+
+  auto phase_start = Clock::now();
+  FlattenOptions flatten_options;
+  flatten_options.sphere_tessellation = args.sphere_tessellation;
+  const FlatScene flat = flatten_scene(scene, flatten_options);
+  const double flatten_s = seconds_since(phase_start);
+  // Notes and warnings only once the scene has loaded and flattened: a failing run prints one line.
+  if (!args.quiet) print_notices(args.scene, report, scene);
+  warn_about_dropped_triangles(scene, flat, args.quiet);
+
+  phase_start = Clock::now();
+  const std::unique_ptr<Accel> accel = build_accel(batch.accel_kind, flat, batch.accel_options);
+  const double build_s = seconds_since(phase_start);
+
+  RenderOptions options;
+  options.threads = batch.threads;
+  options.samples_per_pixel = args.spp;
+  options.ray_offset = batch.ray_offset;
+  options.effects = args.effects;
+  options.region = region;
+  if (!args.debug_pixel.empty()) {
+    for (const std::string& line : trace_pixel(scene, flat, *accel, options, args.debug_pixel[0], args.debug_pixel[1]))
+      fmt::print("{}\n", line);
+    return Outcome::rendered;
+  }
+  options.time_queries = args.explain || !args.stats_path.empty();
+  ProgressBar progress(args.scene_paths.size() > 1 ? fmt::format("rendering {}", scene.source) : "rendering", !args.quiet);
+  options.on_progress = [&](double fraction) { progress.update(fraction); };
+  options.cancel = &interrupted;
+  const RenderResult result = render_image(scene, flat, *accel, options);
+  progress.finish();
+  ImageHeader header;
+  if (region) {
+    header.data_window = region;
+    header.full_width = scene.settings.width;
+    header.full_height = scene.settings.height;
+    header.attributes = {{kSceneAttribute, scene_fingerprint(scene, flat)},
+                         {kSettingsAttribute, settings_text(args)},
+                         {kVersionAttribute, RT_VERSION},
+                         {kPartAttribute, args.region.n > 0 ? fmt::format("tile {}/{}", args.region.k, args.region.n)
+                                                            : "crop " + to_string(*region)}};
+  }
+  if (result.cancelled()) {
+    const int signal = interrupting_signal;
+    const std::string what = fmt::format("rt: interrupted by {} after {} of {} tiles", signal == SIGTERM ? "SIGTERM" : "SIGINT",
+                                         result.tiles_finished(), result.tile_count());
+    if (args.partial_output) {
+      const std::string partial = partial_output_path(output);
+      write_image(result.image, partial, header);
+      fmt::print(stderr, "{}; the finished tiles are in {} (unfinished tiles black); {} not written\n", what, partial,
+                 output);
+    } else {
+      fmt::print(stderr, "{}; nothing written (--partial-output keeps the finished tiles)\n", what);
+    }
+    interrupted_status = 128 + (signal == SIGTERM ? SIGTERM : SIGINT);
+    return Outcome::cancelled;
+  }
+  if (result.non_finite_samples > 0 && !args.quiet)
+    fmt::print(stderr, "rt: warning: {} sample(s) were NaN or infinite and were replaced by black; the first in pixel "
+               "({}, {}): see its ray tree with --debug-pixel {} {}\n", result.non_finite_samples,
+               result.first_non_finite_pixel->first, result.first_non_finite_pixel->second,
+               result.first_non_finite_pixel->first, result.first_non_finite_pixel->second);
+
+  phase_start = Clock::now();
+  write_image(result.image, output, header);
+  const double write_s = seconds_since(phase_start);
+  const double total_s = seconds_since(start);
+  const double mrays = result.rays.total() / std::max(result.seconds, 1e-9) / 1e6;
+
+  if (!args.stats_path.empty()) {
+    nlohmann::ordered_json stats;
+    stats["scene"] = scene_path.empty() ? "<built-in default>" : scene_path;
+    stats["output"] = output;
+    stats["accel"] = to_string(batch.accel_kind);
+    if (batch.accel_kind == AccelKind::embree)
+      stats["embree"] = {{"robust", batch.accel_options.embree_robust},
+                         {"quality", to_string(batch.accel_options.embree_quality)},
+                         {"kernel", to_string(batch.accel_options.embree_kernel)}};
+    stats["ray_offset"] = to_string(batch.ray_offset);
+    stats["threads"] = batch.threads;
+    stats["image"] = {{"width", scene.settings.width}, {"height", scene.settings.height}};
+    if (region) stats["region"] = {region->x0, region->y0, region->x1, region->y1};
+    stats["max_depth"] = scene.settings.max_depth;
+    stats["samples_per_pixel"] = args.spp;
+    stats["triangles"] = flat.triangle_count();
+    stats["spheres"] = flat.spheres.size();
+    stats["sphere_tessellation"] = args.sphere_tessellation;
+    stats["degenerate_triangles_dropped"] = flat.degenerate_triangles_dropped;
+    stats["non_finite_samples"] = result.non_finite_samples;
+    stats["lights"] = scene.lights.size();
+    stats["rays"] = {{"camera", result.rays.camera},
+                     {"shadow", result.rays.shadow},
+                     {"reflection", result.rays.reflection},
+                     {"total", result.rays.total()}};
+    stats["effects"] = effects_json(result.plan, scene);
+    stats["ray_budget"] = ray_budget_json(result, scene);
+    stats["mrays_per_s"] = mrays;
+    stats["time_s"] = {{"load", load_s},     {"flatten", flatten_s}, {"build", build_s},
+                       {"render", result.seconds}, {"write", write_s},   {"total", total_s}};
+    write_text_file_atomically(args.stats_path, stats.dump(2) + "\n");
+  }
+  if (args.explain) fmt::print("{}", explain_render(result, scene));
+  if (!args.quiet)
+    fmt::print(
+        "{}: {}x{}{}, {} triangles, {} spheres, {} lights, {:.3f} s render, {:.3f} s total, {:.2f} Mrays/s ({}, {} "
+        "threads)\n",
+        output, scene.settings.width, scene.settings.height, region ? fmt::format(" pixels {}", to_string(*region)) : "",
+        flat.triangle_count(), flat.spheres.size(), scene.lights.size(), result.seconds, total_s, mrays,
+        to_string(batch.accel_kind), batch.threads);
+  return Outcome::rendered;
+}
+
+// Batch mistakes found before any rendering: -o, --stats or --debug-pixel with several scenes,
+// and two scenes that would write the same --outdir file.
+void check_batch(const RenderArgs& args) {
+  if (args.scene_paths.size() < 2) return;
+  if (!args.output.empty()) throw UsageError("-o names one output file; with several scenes use --outdir DIR");
+  if (!args.stats_path.empty() || !args.debug_pixel.empty())
+    throw UsageError("--stats and --debug-pixel take one scene");
+  std::map<std::string, std::string> scene_of;
+  for (const std::string& path : args.scene_paths)
+    if (const auto output = output_before_loading(args, path))
+      if (const auto [it, inserted] = scene_of.emplace(*output, path); !inserted)
+        throw UsageError(fmt::format("'{}' and '{}' would both write {}", it->second, path, *output));
+}
+
+}  // namespace
+
+int run_render(const RenderArgs& args) {
+  check_batch(args);
+  set_memory_limit(args.memory_limit);
+  BatchContext batch;
+  batch.threads = args.threads > 0 ? args.threads : tbb::info::default_concurrency();
+  // Limits Embree's BVH build (TBB tasks) as well as the render loop.
+  tbb::global_control thread_limit(tbb::global_control::max_allowed_parallelism, batch.threads);
+  batch.accel_kind = parse_accel_kind(args.accel);
+  batch.accel_options.embree_robust = args.embree_robust == "on";
+  batch.accel_options.embree_quality = parse_embree_quality(args.embree_quality);
+  batch.accel_options.embree_kernel = parse_embree_kernel(args.embree_kernel);
+  batch.ray_offset = parse_ray_offset(args.ray_offset);
+  if (!args.outdir.empty()) {
+    std::error_code error;
+    fs::create_directories(args.outdir, error);
+    if (!fs::is_directory(args.outdir))
+      throw InputError(args.outdir, "", fmt::format("cannot create the output directory{}",
+                                                    error ? " (" + error.message() + ")" : ""));
+  }
+  const ScopedInterruptHandler interrupt_handler;
+  const std::vector<std::string> scenes = args.scene_paths.empty() ? std::vector<std::string>{""} : args.scene_paths;
+  int interrupted_status = 0;
+  if (scenes.size() == 1) {  // errors propagate: the CLI prints them with their exit status
+    render_scene(args, scenes[0], batch, interrupted_status);
+    return interrupted_status;
+  }
+
+  // A batch: one Embree device for all scenes; a failing scene does not stop the others.
+  if (batch.accel_kind == AccelKind::embree) batch.accel_options.embree_device = std::make_shared<EmbreeDevice>();
+  const auto start = Clock::now();
+  int rendered = 0, skipped = 0;
+  std::vector<std::string> failed;
+  for (const std::string& scene_path : scenes) {
+    try {
+      const Outcome outcome = render_scene(args, scene_path, batch, interrupted_status);
+      if (outcome == Outcome::cancelled) {
+        fmt::print(stderr, "rt: batch interrupted: {} rendered, {} skipped, {} failed, {} not started\n", rendered,
+                   skipped, failed.size(), scenes.size() - std::size_t(rendered + skipped) - failed.size() - 1);
+        return interrupted_status;
+      }
+      ++(outcome == Outcome::skipped ? skipped : rendered);
+    } catch (const std::bad_alloc&) {
+      fmt::print(stderr, "rt: error: {}: out of memory\n", printable_line(scene_path));
+      failed.push_back(scene_path);
+    } catch (const std::exception& error) {
+      fmt::print(stderr, "rt: error: {}\n", printable_line(error.what()));
+      failed.push_back(scene_path);
+    }
+  }
+  if (!args.quiet || !failed.empty())
+    fmt::print(stderr, "rt: batch of {} scenes in {:.1f} s: {} rendered, {} skipped, {} failed{}{}\n", scenes.size(),
+               seconds_since(start), rendered, skipped, failed.size(), failed.empty() ? "" : ": ",
+               printable_line(fmt::format("{}", fmt::join(failed, ", "))));
+  return failed.empty() ? 0 : 1;
+}
+
+int run_merge(const std::vector<std::string>& paths, const std::string& output, bool quiet) {
+  check_output_path(output);
+  const auto start = Clock::now();
+  const Image image = merge_regions(paths);
+  write_image(image, output);
+  if (!quiet)
+    fmt::print("{}: {}x{} from {} region file(s), {:.3f} s\n", output, image.width, image.height, paths.size(),
+               seconds_since(start));
+  return 0;
+}
+
+int run_info(const std::string& scene_path, const GltfOptions& gltf, const SceneOptions& scene_options,
+             const EffectsOptions& effects) {
+  LoadReport report;
+  Scene scene = load_scene_or_default(scene_path, gltf, &report);
+  apply_scene_options(scene_options, report, scene);
+  validate_scene(scene);
+  const FlatScene flat = flatten_scene(scene);
+  print_notices(scene_options, report, scene);
+  std::size_t models = 0;
+  for (const Node& node : scene.nodes) models += node.models.size();
+  const Bounds3d bounds = flat_bounds(flat);
+  const Camera& c = scene.camera;
+  fmt::print("scene       {}\n", scene.source);
+  fmt::print("image       {}x{}, max depth {}, background ({}, {}, {})\n", scene.settings.width,
+             scene.settings.height, scene.settings.max_depth, scene.settings.background.r,
+             scene.settings.background.g, scene.settings.background.b);
+  fmt::print("camera      eye ({}, {}, {}), target ({}, {}, {}), up ({}, {}, {}), fovy {} deg\n", c.eye.x, c.eye.y,
+             c.eye.z, c.target.x, c.target.y, c.target.z, c.up.x, c.up.y, c.up.z, c.fovy_degrees);
+  fmt::print("graph       {} nodes, {} models\n", scene.nodes.size(), models);
+  fmt::print("geometry    {} triangles, {} vertices, {} degenerate triangles dropped, {} spheres (exact)\n",
+             flat.triangle_count(), flat.positions.size(), flat.degenerate_triangles_dropped, flat.spheres.size());
+  if (!bounds.empty())
+    fmt::print("bounds      ({:.7g}, {:.7g}, {:.7g}) .. ({:.7g}, {:.7g}, {:.7g})\n", bounds.lo.x, bounds.lo.y,
+               bounds.lo.z, bounds.hi.x, bounds.hi.y, bounds.hi.z);
+  fmt::print("materials   {}\n", scene.materials.size());
+  for (const Material& m : scene.materials)
+    fmt::print("  {:<16} diffuse ({}, {}, {}), specular ({}, {}, {}), shininess {}{}\n", m.name, m.diffuse.r,
+               m.diffuse.g, m.diffuse.b, m.specular.r, m.specular.g, m.specular.b, m.shininess,
+               m.diffuse_texture.empty() ? "" : ", texture " + m.diffuse_texture.path);
+  fmt::print("lights      {}\n", scene.lights.size());
+  for (const Light& l : scene.lights) {
+    if (l.is_directional())
+      fmt::print("  directional towards ({}, {}, {}), colour ({}, {}, {})\n", l.position.x, l.position.y,
+                 l.position.z, l.color.r, l.color.g, l.color.b);
+    else
+      fmt::print("  {} at ({}, {}, {}), colour ({}, {}, {}), attenuation ({}, {}, {}){}\n", l.is_spot() ? "spot" : "point",
+                 l.position.x, l.position.y, l.position.z, l.color.r, l.color.g, l.color.b, l.attenuation.x,
+                 l.attenuation.y, l.attenuation.z,
+                 l.is_spot() ? fmt::format(", towards ({}, {}, {}), cone cosines {} .. {}", l.spot_direction.x,
+                                           l.spot_direction.y, l.spot_direction.z, l.spot_cos_inner, l.spot_cos_outer)
+                             : "");
+  }
+  fmt::print("effects     (default ray offsets; see rt render --explain for the ray budget)\n");
+  for (const std::string& line : describe_plan(plan_effects(scene, flat, RayOffset{}, effects), scene))
+    fmt::print("  {}\n", line);
+  return 0;
+}
+
+}  // namespace rt
