@@ -219,6 +219,7 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
   options.time_queries = args.explain || !args.stats_path.empty();
   ProgressBar progress(args.scene_paths.size() > 1 ? fmt::format("rendering {}", scene.source) : "rendering", !args.quiet);
   options.on_progress = [&](double fraction) { progress.update(fraction); };
+  const ScopedInterruptHandler interrupt_handler;  // while rendering; before, a signal ends the process
   options.cancel = &interrupted;
   const RenderResult result = render_image(scene, flat, *accel, options);
   progress.finish();
@@ -338,7 +339,6 @@ int run_render(const RenderArgs& args) {
       throw InputError(args.outdir, "", fmt::format("cannot create the output directory{}",
                                                     error ? " (" + error.message() + ")" : ""));
   }
-  const ScopedInterruptHandler interrupt_handler;
   const std::vector<std::string> scenes = args.scene_paths.empty() ? std::vector<std::string>{""} : args.scene_paths;
   int interrupted_status = 0;
   if (scenes.size() == 1) {  // errors propagate: the CLI prints them with their exit status
