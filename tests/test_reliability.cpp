@@ -325,4 +325,15 @@ TEST_CASE("SIGINT and SIGTERM stop a long render within a second, writing nothin
     CHECK_THAT(run.err, Catch::Contains("interrupted by SIGTERM") && Catch::Contains("out.partial.png"));
     CHECK(dir.entries() == std::vector<std::string>{"out.partial.png"});
   }
+  SECTION("SIGINT in a batch: the render in progress stops, no other scene starts") {
+    const std::string scenes = std::string(RT_SOURCE_DIR) + "/scenes/";
+    const Interrupted run = interrupt_rt(dir, {"render", "--spp", "64", "--outdir", "out", scenes + "default.json",
+                                               scenes + "transforms.json"}, SIGINT, std::chrono::milliseconds(2500));
+    INFO("stderr: " << run.err);
+    CHECK(run.status == 130);
+    CHECK(run.seconds < 1.0);
+    CHECK_THAT(run.err, Catch::Contains("rt: batch interrupted: 0 rendered, 0 skipped, 0 failed, 1 not started"));
+    CHECK(dir.entries() == std::vector<std::string>{"out"});
+    CHECK(std::filesystem::is_empty(dir.path() / "out"));
+  }
 }
