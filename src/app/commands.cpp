@@ -1,6 +1,8 @@
 #include "commands.h"
 
+#include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
@@ -184,7 +186,9 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
                                                      "rows (at most {})", args.region.k, args.region.n,
                                                      scene.settings.height, args.region.n, scene.settings.height));
     region = tile_region(args.region.k, args.region.n, scene.settings.width, scene.settings.height);
-    if (!writes_float(output) || fs::path(output).extension() != ".exr")
+    std::string extension = fs::path(output).extension().string();
+    std::transform(extension.begin(), extension.end(), extension.begin(), [](unsigned char c) { return std::tolower(c); });
+    if (extension != ".exr")
       throw UsageError(fmt::format("--tile writes an OpenEXR region file for rt merge; '{}' is not .exr", output));
   }
   check_output_path(output);  // fail before rendering, not after
