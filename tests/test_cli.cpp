@@ -266,3 +266,42 @@ TEST_CASE("every scene in scenes/ loads and renders", "[cli]") {
     }
   }
 }
+
+TEST_CASE("rt writes PNG and PPM without OpenImageIO and says clearly when its module is missing", "[cli]") {
+  // The OpenImageIO module is loaded only for formats rt does not encode itself: with the module
+  // pointed at a missing file, PNG and PPM still work and EXR fails with one clear line.
+  rt_test::TempDir dir;
+  write_file(dir / "scene.json", kGoodScene);
+  const std::string missing = "RT_OIIO_MODULE=" + quoted(dir / "absent/rt-oiio.so") + " ";
+  const auto run_without_module = [&](const std::string& args) {
+    return rt_test::run_in(dir, "/usr/bin/env", missing + quoted(RT_EXECUTABLE) + " " + args);
+  };
+  for (const char* name : {"out.png", "out.ppm"}) {
+    const Run run = run_without_module(std::string("render scene.json --quiet -o ") + name);
+    INFO(name << " stderr: " << run.err);
+    CHECK(run.status == 0);
+    CHECK(fs::exists(dir / name));
+  }
+  // Same pixels as the module's reader sees in a PNG written through the normal path.
+  const Run png = run_rt(dir, "render scene.json --quiet -o again.png");
+  REQUIRE(png.status == 0);
+  CHECK(read_file(dir / "again.png") == read_file(dir / "out.png"));
+  const rt::Image image = rt::read_image(dir / "out.png");
+  const std::string ppm = read_file(dir / "out.ppm");
+  const std::string header = "P6\n32 24\n255\n";
+  REQUIRE(ppm.size() == header.size() + 32 * 24 * 3);
+  CHECK(ppm.substr(0, header.size()) == header);
+  bool same = true;
+  for (std::size_t i = 0; i < image.pixels.size(); ++i)
+    for (int c = 0; c < 3; ++c)
+      same = same && static_cast<unsigned char>(ppm[header.size() + 3 * i + c]) ==
+                         static_cast<unsigned char>(std::lround(255.0f * image.pixels[i][c]));
+  CHECK(same);
+
+  const Run exr = run_without_module("render scene.json --quiet -o out.exr");
+  CHECK(exr.status == 1);
+  CHECK(line_count(exr.err) == 1);
+  CHECK(exr.err.find("cannot load the OpenImageIO module rt-oiio.so") != std::string::npos);
+  CHECK(exr.err.find("RT_OIIO_MODULE") != std::string::npos);
+  CHECK_FALSE(fs::exists(dir / "out.exr"));
+}

@@ -5,11 +5,11 @@
 #include <filesystem>
 #include <system_error>
 
-#include <OpenImageIO/filesystem.h>
-#include <OpenImageIO/imageio.h>
 #include <fmt/format.h>
+#include <png.h>
 
 #include "rt/core/error.h"
+#include "io/oiio_module.h"
 #include "rt/io/atomic_file.h"
 
 namespace rt {
@@ -46,79 +46,77 @@ bool writes_float(const std::string& path) {
 
 namespace {
 
-std::unique_ptr<OIIO::ImageOutput> create_output(const std::string& path) {
-  auto output = OIIO::ImageOutput::create(path);
-  if (!output) {
-    OIIO::geterror();  // clear OIIO's pending message; ours says it better
-    const std::string ext = lower_extension(path);
-    throw InputError(path, "", ext.empty() ? "output file has no extension to choose an image format by"
-                                           : fmt::format("unknown image format '{}'", ext));
+// Formats rt encodes itself, without loading OpenImageIO (oiio_module.h says why).
+bool is_native_format(const std::string& ext) { return ext == ".png" || ext == ".ppm"; }
+
+// 8-bit RGB PNG through libpng's simplified API (default zlib compression; libpng tags 8-bit
+// output as sRGB, which is how the quantised values are meant to be displayed).
+std::vector<unsigned char> encode_png(const Image& image, const std::vector<std::uint8_t>& rgb8, const std::string& path) {
+  png_image png{};
+  png.version = PNG_IMAGE_VERSION;
+  png.width = static_cast<png_uint_32>(image.width);
+  png.height = static_cast<png_uint_32>(image.height);
+  png.format = PNG_FORMAT_RGB;
+  png_alloc_size_t size = 0;
+  std::vector<unsigned char> encoded;
+  if (png_image_write_to_memory(&png, nullptr, &size, 0, rgb8.data(), 0, nullptr)) {
+    encoded.resize(size);
+    if (png_image_write_to_memory(&png, encoded.data(), &size, 0, rgb8.data(), 0, nullptr)) {
+      encoded.resize(size);
+      return encoded;
+    }
   }
-  return output;
+  const std::string message = png.message;
+  png_image_free(&png);
+  throw RuntimeError(fmt::format("{}: cannot encode the image: {}", path, message));
+}
+
+// Binary PPM (P6), maxval 255.
+std::vector<unsigned char> encode_ppm(const Image& image, const std::vector<std::uint8_t>& rgb8) {
+  const std::string header = fmt::format("P6\n{} {}\n255\n", image.width, image.height);
+  std::vector<unsigned char> encoded(header.begin(), header.end());
+  encoded.insert(encoded.end(), rgb8.begin(), rgb8.end());
+  return encoded;
+}
+
+// Throws InputError unless rt or OpenImageIO can write `path`'s format.
+void check_format(const std::string& path) {
+  const std::string ext = lower_extension(path);
+  if (ext.empty()) throw InputError(path, "", "output file has no extension to choose an image format by");
+  if (!is_native_format(ext) && !oiio_module().has_writer(path))
+    throw InputError(path, "", fmt::format("unknown image format '{}'", ext));
 }
 
 }  // namespace
 
 void check_output_path(const std::string& path) {
-  create_output(path);
+  check_format(path);
   check_parent_directory_writable(path);
 }
 
 void write_image(const Image& image, const std::string& path, const ImageHeader& header) {
-  auto output = create_output(path);
+  check_format(path);
+  const std::string ext = lower_extension(path);
   const bool as_float = writes_float(path);
-  OIIO::ImageSpec spec(image.width, image.height, 3, as_float ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8);
-  if (header.data_window) {
-    spec.x = header.data_window->x0;
-    spec.y = header.data_window->y0;
-    spec.full_width = header.full_width;
-    spec.full_height = header.full_height;
-  }
-  for (const auto& [name, value] : header.attributes) spec.attribute(name, value);
-  // Lossless, so that merged regions equal a whole render bit for bit (OIIO's default is zip too).
-  if (lower_extension(path) == ".exr") spec.attribute("compression", "zip");
-  std::vector<std::uint8_t> bytes;
-  const void* data = image.pixels.data();
-  if (!as_float) {
-    bytes = to_rgb8(image);
-    data = bytes.data();
-  }
-  // Encoded in memory, then written with checked system calls: OIIO's file writers can miss a
-  // failed write (the PNG writer leaves a truncated file and reports success when the disk fills).
-  if (!output->supports("ioproxy"))
-    throw InputError(path, "", fmt::format("the '{}' writer cannot encode to memory", output->format_name()));
+  const std::vector<std::uint8_t> rgb8 = as_float ? std::vector<std::uint8_t>{} : to_rgb8(image);
   std::vector<unsigned char> encoded;
-  OIIO::Filesystem::IOVecOutput proxy(encoded);
-  output->set_ioproxy(&proxy);
-  if (!(output->open(path, spec) && output->write_image(spec.format, data) && output->close()))
-    throw RuntimeError(fmt::format("{}: cannot encode the image: {}", path, output->geterror()));
-  output.reset();
+  if (ext == ".png") {
+    encoded = encode_png(image, rgb8, path);
+  } else if (ext == ".ppm") {
+    encoded = encode_ppm(image, rgb8);
+  } else {
+    std::string error;
+    encoded = oiio_module().encode(path, image, as_float, rgb8, header, error);
+    if (!error.empty()) throw RuntimeError(fmt::format("{}: cannot encode the image: {}", path, error));
+  }
   write_file_atomically(path, std::string_view(reinterpret_cast<const char*>(encoded.data()), encoded.size()));
 }
 
 Image read_image(const std::string& path, ImageHeader* header) {
-  auto input = OIIO::ImageInput::open(path);
-  if (!input) throw InputError(path, "", fmt::format("cannot read image ({})", OIIO::geterror()));
-  const OIIO::ImageSpec& spec = input->spec();
-  if (header) {
-    *header = ImageHeader{};
-    const PixelRegion data{spec.x, spec.y, spec.x + spec.width, spec.y + spec.height};
-    header->full_width = spec.full_width;
-    header->full_height = spec.full_height;
-    if (data != PixelRegion{spec.full_x, spec.full_y, spec.full_x + spec.full_width, spec.full_y + spec.full_height})
-      header->data_window = data;
-    for (const OIIO::ParamValue& p : spec.extra_attribs)
-      if (p.name().string().starts_with("rt:") && p.type() == OIIO::TypeDesc::STRING)
-        header->attributes.emplace_back(p.name().string(), p.get_string());
-  }
-  const int channels = spec.nchannels;
-  std::vector<float> data(static_cast<std::size_t>(spec.width) * spec.height * channels);
-  if (!input->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, data.data()))
-    throw InputError(path, "", fmt::format("cannot read image ({})", input->geterror()));
-  Image image(spec.width, spec.height);
-  for (std::size_t i = 0; i < image.pixels.size(); ++i)
-    for (int c = 0; c < 3; ++c) image.pixels[i][c] = data[i * channels + std::min(c, channels - 1)];
-  return image;
+  std::string error;
+  std::optional<Image> image = oiio_module().read(path, header, error);
+  if (!image) throw InputError(path, "", fmt::format("cannot read image ({})", error));
+  return std::move(*image);
 }
 
 }  // namespace rt

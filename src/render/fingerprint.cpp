@@ -6,8 +6,8 @@
 #include <string_view>
 #include <type_traits>
 
-#include <OpenImageIO/hash.h>
 #include <fmt/format.h>
+#include <xxhash.h>
 #include <glm/gtc/type_ptr.hpp>
 
 namespace rt {
@@ -18,7 +18,7 @@ namespace {
 // their bytes, which is exact for the padding-free float, double and integer types used here.
 class Digest {
  public:
-  void bytes(const void* data, std::size_t size) { value_ = OIIO::xxhash::XXH64(data, size, value_); }
+  void bytes(const void* data, std::size_t size) { value_ = XXH64(data, size, value_); }
   template <class T>
   void value(const T& v) {
     static_assert(std::is_arithmetic_v<T>);

@@ -1,5 +1,6 @@
 #pragma once
-// Image output through OpenImageIO, format chosen by the file extension.
+// Image files, format chosen by the file extension: PNG and PPM written by rt itself, every other
+// format (and all reading) through OpenImageIO, which is loaded only then.
 
 #include <cstdint>
 #include <optional>
@@ -22,7 +23,7 @@ std::vector<std::uint8_t> to_rgb8(const Image& image);
 // True for extensions written as linear float (.exr, .hdr); everything else is 8-bit.
 bool writes_float(const std::string& path);
 
-// Throws InputError unless OpenImageIO can write the format named by `path`'s extension and the
+// Throws InputError unless rt or OpenImageIO can write the format named by `path`'s extension and the
 // directory `path` names exists and is writable. Lets callers refuse a bad output before rendering.
 void check_output_path(const std::string& path);
 
