@@ -11,7 +11,7 @@ Run it with the Python of a venv that has mitsuba installed, e.g.
     VENV/bin/python tools/bench-mitsuba.py --obj dragon.obj --eye 0 0.125 0.3 \
         --target 0 0.125 0 --light 0.3 0.5 0.6
 
-It prints one JSON object on stdout: import_s (import mitsuba + set_variant), load_s
+It prints one JSON object as the last line of stdout (Mitsuba's warnings may come before it): import_s (import mitsuba + set_variant), load_s
 (mi.load_dict: OBJ parsing and BVH build), render_s (mi.render), write_s (only with --png),
 triangles, and the mitsuba version. Whole-process time is measured by the caller.
 """
@@ -98,7 +98,9 @@ def main():
     if args.png:
         mi.util.write_bitmap(args.png, image)
         result["write_s"] = time.perf_counter() - t2
-    print(json.dumps(result))
+    # Mitsuba's log also goes to stdout (and may leave a colour code without a newline): start a
+    # fresh line, so the JSON is the last line on its own.
+    print("\n" + json.dumps(result))
 
 
 if __name__ == "__main__":
