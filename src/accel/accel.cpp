@@ -8,6 +8,10 @@
 
 namespace rt {
 
+void Accel::intersect_coherent(std::span<const Ray> rays, std::span<Hit> hits) const {
+  for (std::size_t i = 0; i < rays.size(); ++i) hits[i] = intersect(rays[i]);
+}
+
 std::unique_ptr<Accel> build_accel(AccelKind kind, const FlatScene& scene, const AccelOptions& options) {
   switch (kind) {
     case AccelKind::embree: return std::make_unique<EmbreeAccel>(scene, options);

@@ -56,32 +56,43 @@ RTCBuildQuality to_embree(EmbreeQuality quality) {
   return RTC_BUILD_QUALITY_MEDIUM;
 }
 
-// The closest hit so far, ordered by (t, primitive index) like the reference. Embree passes our
-// RTCIntersectContext pointer to filters and user-geometry callbacks, so the fields after it travel
-// along (the pattern of Embree's own tutorials). Occlusion queries pass a plain context.
-struct HitContext {
-  RTCIntersectContext embree;
-  double best_t;       // t of the hit accepted so far (the ray's tfar until one is)
-  unsigned best_prim;  // its FlatScene primitive number; RTC_INVALID_GEOMETRY_ID before any hit
-  double best_b1, best_b2;
+// The closest hit so far of one ray, ordered by (t, primitive index) like the reference.
+struct BestHit {
+  double t;       // t of the hit accepted so far (the ray's tfar until one is)
+  unsigned prim;  // its FlatScene primitive number; RTC_INVALID_GEOMETRY_ID before any hit
+  double b1, b2;  // its barycentrics
 
   // Accepts a candidate that is strictly closer, or equally close with a lower index: the closest
   // hit then does not depend on BVH layout or traversal order.
-  bool offer(double t, unsigned prim, double b1, double b2) {
-    if (!(t < best_t || (t == best_t && prim < best_prim))) return false;
-    best_t = t;
-    best_prim = prim;
-    best_b1 = b1;
-    best_b2 = b2;
+  bool offer(double candidate_t, unsigned candidate_prim, double candidate_b1, double candidate_b2) {
+    if (!(candidate_t < t || (candidate_t == t && candidate_prim < prim))) return false;
+    t = candidate_t;
+    prim = candidate_prim;
+    b1 = candidate_b1;
+    b2 = candidate_b2;
     return true;
+  }
+};
+
+constexpr unsigned kPacketSize = 16;
+
+// Embree passes our RTCIntersectContext pointer to filters and user-geometry callbacks, so the
+// fields after it travel along (the pattern of Embree's own tutorials). Each ray's id indexes its
+// BestHit: 0 for a single ray, the lane for a packet. Occlusion queries pass a plain context.
+struct HitContext {
+  RTCIntersectContext embree;
+  BestHit* best;  // one per ray of the query
+
+  BestHit& of(const RTCRayN* ray, unsigned n, unsigned i) const {
+    return best[RTCRayN_id(const_cast<RTCRayN*>(ray), n, i)];
   }
 };
 
 // Embree culls boxes and (native) candidates beyond the ray's tfar; after accepting a hit at t the
 // callbacks set tfar 2^-20 relative (~16 ulps) beyond it, so an equally close candidate elsewhere
 // still reaches them: Embree's own depth test T <= |den| * tfar on unnormalised values can fail by
-// rounding for a candidate whose t equals tfar exactly. HitContext::offer decides by exact
-// comparison instead, and intersect() reports best_t.
+// rounding for a candidate whose t equals tfar exactly. BestHit::offer decides by exact
+// comparison instead, and intersect() reports BestHit::t.
 float widened(double t) {
   const auto f = static_cast<float>(t);
   return f + std::abs(f) * 0x1p-20f;
@@ -94,7 +105,7 @@ void order_hits(const RTCFilterFunctionNArguments* args) {
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] == 0) continue;
     float& tfar = RTCRayN_tfar(args->ray, args->N, i);
-    if (context->offer(tfar, RTCHitN_primID(args->hit, args->N, i), RTCHitN_u(args->hit, args->N, i),
+    if (context->of(args->ray, args->N, i).offer(tfar, RTCHitN_primID(args->hit, args->N, i), RTCHitN_u(args->hit, args->N, i),
                        RTCHitN_v(args->hit, args->N, i)))
       tfar = widened(tfar);
     else
@@ -193,9 +204,10 @@ void user_intersect(const RTCIntersectFunctionNArguments* args) {
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] == 0) continue;
     TriangleHitD hit;
+    BestHit& best = context->of(ray, args->N, i);
     if (!test_primitive(kGeometry, flat, args->primID, ray_origin(ray, args->N, i), ray_direction(ray, args->N, i),
-                        RTCRayN_tnear(ray, args->N, i), context->best_t, hit) ||
-        !context->offer(hit.t, prim, hit.b1, hit.b2))
+                        RTCRayN_tnear(ray, args->N, i), best.t, hit) ||
+        !best.offer(hit.t, prim, hit.b1, hit.b2))
       continue;
     RTCRayN_tfar(ray, args->N, i) = widened(hit.t);
     RTCHitN_geomID(hit_out, args->N, i) = args->geomID;
@@ -294,6 +306,7 @@ struct EmbreeAccel::Impl {
   std::int64_t baseline_bytes = 0;  // the device's memory_bytes when this accel began
   RTCScene scene = nullptr;
   UserGeometryData user_data;  // read by the user-geometry callbacks
+  bool packets_exact = true;   // packets return what single rays do (see intersect_coherent)
 
   template <unsigned kGeometry>
   RTCGeometry new_user_geometry(std::size_t count, RTCBoundsFunction bounds) {
@@ -335,6 +348,7 @@ EmbreeAccel::EmbreeAccel(const FlatScene& flat, const AccelOptions& options) : i
                                      (options.embree_robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE)));
   rtcSetSceneBuildQuality(impl_->scene, to_embree(options.embree_quality));
   impl_->user_data = {&flat, user_box_padding(flat)};
+  impl_->packets_exact = options.embree_robust || options.embree_kernel == EmbreeKernel::watertight;
   if (flat.triangle_count() > 0) {
     RTCGeometry geometry = nullptr;
     if (options.embree_kernel == EmbreeKernel::native) {
@@ -364,21 +378,72 @@ std::size_t EmbreeAccel::memory_bytes() const {
   return static_cast<std::size_t>(std::max<std::int64_t>(bytes, 0));
 }
 
+namespace {
+
+BestHit no_hit_yet(const Ray& ray) { return {ray.tfar, RTC_INVALID_GEOMETRY_ID, 0.0, 0.0}; }
+
+Hit to_hit(const BestHit& best) {
+  if (best.prim == RTC_INVALID_GEOMETRY_ID) return Hit{};
+  return Hit{static_cast<float>(best.t), static_cast<float>(best.b1), static_cast<float>(best.b2), best.prim};
+}
+
+}  // namespace
+
 Hit EmbreeAccel::intersect(const Ray& ray) const {
-  HitContext context;
+  BestHit best = no_hit_yet(ray);
+  HitContext context{{}, &best};
   rtcInitIntersectContext(&context.embree);
   context.embree.filter = &order_hits;
-  context.best_t = ray.tfar;
-  context.best_prim = RTC_INVALID_GEOMETRY_ID;
   RTCRayHit rayhit;
   fill_ray(ray, rayhit.ray);
   rayhit.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rayhit.hit.primID = RTC_INVALID_GEOMETRY_ID;
   rayhit.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
   rtcIntersect1(impl_->scene, &context.embree, &rayhit);
-  if (context.best_prim == RTC_INVALID_GEOMETRY_ID) return Hit{};
-  return Hit{static_cast<float>(context.best_t), static_cast<float>(context.best_b1),
-             static_cast<float>(context.best_b2), context.best_prim};
+  return to_hit(best);
+}
+
+void EmbreeAccel::intersect_coherent(std::span<const Ray> rays, std::span<Hit> hits) const {
+  // Without RTC_SCENE_FLAG_ROBUST the native packet kernel and the single-ray kernel disagree on
+  // rays exactly along an edge (tests/test_accel.cpp has three), and Embree switches between them
+  // by how many lanes are still active, so a pixel would depend on its neighbours: single rays then.
+  if (!impl_->packets_exact) {
+    Accel::intersect_coherent(rays, hits);
+    return;
+  }
+  for (std::size_t first = 0; first < rays.size(); first += kPacketSize) {
+    const auto lanes = static_cast<unsigned>(std::min<std::size_t>(kPacketSize, rays.size() - first));
+    BestHit best[kPacketSize];
+    HitContext context{{}, best};
+    rtcInitIntersectContext(&context.embree);
+    context.embree.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    context.embree.filter = &order_hits;
+    alignas(64) RTCRayHit16 packet;
+    alignas(64) int valid[kPacketSize];
+    for (unsigned i = 0; i < kPacketSize; ++i) {
+      const bool active = i < lanes;
+      valid[i] = active ? -1 : 0;
+      const Ray& ray = rays[first + (active ? i : 0)];
+      best[i] = no_hit_yet(ray);
+      packet.ray.org_x[i] = ray.origin.x;
+      packet.ray.org_y[i] = ray.origin.y;
+      packet.ray.org_z[i] = ray.origin.z;
+      packet.ray.tnear[i] = ray.tnear;
+      packet.ray.dir_x[i] = ray.direction.x;
+      packet.ray.dir_y[i] = ray.direction.y;
+      packet.ray.dir_z[i] = ray.direction.z;
+      packet.ray.time[i] = 0.0f;
+      packet.ray.tfar[i] = ray.tfar;
+      packet.ray.mask[i] = 0xFFFFFFFFu;  // as in fill_ray
+      packet.ray.id[i] = i;
+      packet.ray.flags[i] = 0;
+      packet.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+      packet.hit.primID[i] = RTC_INVALID_GEOMETRY_ID;
+      packet.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+    }
+    rtcIntersect16(valid, impl_->scene, &context.embree, &packet);
+    for (unsigned i = 0; i < lanes; ++i) hits[first + i] = to_hit(best[i]);
+  }
 }
 
 bool EmbreeAccel::occluded(const Ray& ray) const {

@@ -3,6 +3,8 @@
 #include <x86intrin.h>
 
 #include <algorithm>
+#include <array>
+#include <span>
 #include <atomic>
 #include <cmath>
 #include <chrono>
@@ -108,41 +110,68 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
     return Color(0.0f);
   };
 
+  // Camera rays are traced kBlock x kBlock pixels at a time, one packet per sample index (Embree:
+  // one 16-ray packet), then shaded one by one. When timed, a timed pixel is charged an equal share
+  // of its packet's ticks, so the shares stay fractions of the timed pixels' loop ticks.
+  constexpr int kBlock = 4;
+  const auto render_block = [&](int bx0, int by0, int bx1, int by1, ThreadState& state) {
+    RayCounts& counts = state.counts;
+    std::array<int, kBlock * kBlock> xs, ys;
+    int n = 0;
+    for (int y = by0; y < by1; ++y)
+      for (int x = bx0; x < bx1; ++x, ++n) {
+        xs[n] = x;
+        ys[n] = y;
+      }
+    std::array<Vec3d, kBlock * kBlock> sums{};  // linear RGB, double: the box filter's average (spp > 1)
+    std::array<Ray, kBlock * kBlock> rays;
+    std::array<Hit, kBlock * kBlock> hits;
+    for (int s = 0; s < spp; ++s) {
+      for (int k = 0; k < n; ++k)
+        rays[k] = spp == 1 ? ray_through_pixel(frame, xs[k], ys[k]) : ray_through_pixel_sample(frame, xs[k], ys[k], s, spp);
+      const std::uint64_t packet_start = options.time_queries ? __rdtsc() : 0;
+      accel.intersect_coherent(std::span(rays.data(), std::size_t(n)), std::span(hits.data(), std::size_t(n)));
+      const std::uint64_t packet_share = options.time_queries ? (__rdtsc() - packet_start) / std::uint64_t(n) : 0;
+      for (int k = 0; k < n; ++k) {
+        const int x = xs[k], y = ys[k];
+        const bool timed = options.time_queries && is_timing_sample(x, y);
+        const std::uint64_t start = timed ? __rdtsc() : 0;
+        const std::uint64_t pixel = std::uint64_t(y) * std::uint64_t(width) + std::uint64_t(x);
+        const Color c = guarded(shade_hit(timed ? timed_context : context, rays[k], hits[k], 0, counts), state, pixel);
+        if (spp == 1)
+          result.image.at(x - region.x0, y - region.y0) = c;
+        else
+          sums[k] += Vec3d(c);
+        if (timed) {
+          if (counts.intersect_ticks_per_depth.empty()) counts.intersect_ticks_per_depth.resize(1, 0);
+          counts.intersect_ticks_per_depth[0] += packet_share;
+          counts.loop_ticks += packet_share + (__rdtsc() - start);
+        }
+      }
+    }
+    if (spp > 1)
+      for (int k = 0; k < n; ++k) result.image.at(xs[k] - region.x0, ys[k] - region.y0) = Color(sums[k] / double(spp));
+    counts.camera += std::uint64_t(spp) * std::uint64_t(n);
+  };
+
   auto render_tiles = [&](const tbb::blocked_range<int>& range) {
     ScopedFlushDenormals flush;
     ThreadState& state = thread_states.local();
-    RayCounts& counts = state.counts;
     for (int t = range.begin(); t != range.end(); ++t) {
       const int x0 = region.x0 + (t % tiles_x) * tile, y0 = region.y0 + (t / tiles_x) * tile;
       const int x1 = std::min(x0 + tile, region.x1), y1 = std::min(y0 + tile, region.y1);
-      const auto pixel_of = [&](int x, int y) -> Color& { return result.image.at(x - region.x0, y - region.y0); };
       bool abandoned = false;
-      for (int y = y0; y < y1; ++y) {
+      for (int by = y0; by < y1 && !abandoned; by += kBlock) {
         if (cancelled()) {
           abandoned = true;
           break;
         }
-        for (int x = x0; x < x1; ++x) {
-          const bool timed = options.time_queries && is_timing_sample(x, y);
-          const ShadingContext& shading = timed ? timed_context : context;
-          const std::uint64_t pixel = std::uint64_t(y) * std::uint64_t(width) + std::uint64_t(x);
-          const std::uint64_t start = timed ? __rdtsc() : 0;
-          if (spp == 1) {
-            pixel_of(x, y) = guarded(find_color(shading, ray_through_pixel(frame, x, y), 0, counts), state, pixel);
-          } else {
-            Vec3d sum(0.0);  // linear RGB, double: the box filter's average
-            for (int s = 0; s < spp; ++s)
-              sum += Vec3d(guarded(find_color(shading, ray_through_pixel_sample(frame, x, y, s, spp), 0, counts),
-                                   state, pixel));
-            pixel_of(x, y) = Color(sum / double(spp));
-          }
-          counts.camera += std::uint64_t(spp);
-          if (timed) counts.loop_ticks += __rdtsc() - start;
-        }
+        for (int bx = x0; bx < x1; bx += kBlock)
+          render_block(bx, by, std::min(bx + kBlock, x1), std::min(by + kBlock, y1), state);
       }
       if (abandoned) {  // unfinished tiles are black, whatever rows were done
         for (int y = y0; y < y1; ++y)
-          for (int x = x0; x < x1; ++x) pixel_of(x, y) = Color(0.0f);
+          for (int x = x0; x < x1; ++x) result.image.at(x - region.x0, y - region.y0) = Color(0.0f);
         continue;
       }
       result.tile_done[std::size_t(t)] = 1;

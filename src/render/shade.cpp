@@ -72,6 +72,11 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
   const std::uint64_t intersect_start = context.time_queries ? __rdtsc() : 0;
   const Hit hit = context.accel.intersect(ray);
   if (context.time_queries) add_at(counts.intersect_ticks_per_depth, std::size_t(depth), __rdtsc() - intersect_start);
+  return shade_hit(context, ray, hit, depth, counts, throughput);
+}
+
+Color shade_hit(const ShadingContext& context, const Ray& ray, const Hit& hit, int depth, RayCounts& counts,
+                const Vec3d& throughput) {
   if (!hit.found()) {
     if (context.trace)
       note(context, depth, "{} ray {}: miss, background {}", depth == 0 ? "camera" : "reflection", format_ray(ray),

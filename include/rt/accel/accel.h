@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
+#include <span>
 #include <string_view>
 
 #include "rt/core/math.h"
@@ -77,6 +78,11 @@ class Accel {
   // Closest intersection along the ray within [tnear, tfar]; a miss returns Hit{}. Among
   // primitives hit at the same computed t the lowest index wins, in every backend.
   virtual Hit intersect(const Ray& ray) const = 0;
+
+  // intersect() of every ray, hits[i] for rays[i] (hits.size() >= rays.size()). For rays that start
+  // together and point alike, as camera rays of neighbouring pixels do, a backend may trace them
+  // as packets; the hits are the same as intersect()'s. This default calls intersect().
+  virtual void intersect_coherent(std::span<const Ray> rays, std::span<Hit> hits) const;
 
   // True when any primitive is hit within [tnear, tfar]. Cheaper than intersect().
   virtual bool occluded(const Ray& ray) const = 0;

@@ -45,6 +45,8 @@ class EmbreeAccel final : public Accel {
   EmbreeAccel& operator=(const EmbreeAccel&) = delete;
 
   Hit intersect(const Ray& ray) const override;
+  // Packets of 16 (rtcIntersect16, coherent), ordered per ray like intersect().
+  void intersect_coherent(std::span<const Ray> rays, std::span<Hit> hits) const override;
   bool occluded(const Ray& ray) const override;
   std::string_view name() const override { return "embree"; }
 

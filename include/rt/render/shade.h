@@ -72,4 +72,9 @@ struct ShadingContext {
 Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCounts& counts,
                  const Vec3d& throughput = Vec3d(1.0));
 
+// find_color for a ray whose closest hit `hit` is already known (camera rays traced together by
+// Accel::intersect_coherent): the same colour, the same counts except the closest-hit query's ticks.
+Color shade_hit(const ShadingContext& context, const Ray& ray, const Hit& hit, int depth, RayCounts& counts,
+                const Vec3d& throughput = Vec3d(1.0));
+
 }  // namespace rt
