@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <random>
 #include <vector>
 
 #include "rt/accel/accel.h"
@@ -335,4 +336,37 @@ TEST_CASE("intersect_coherent returns exactly what intersect returns, ray by ray
   for (int i = 0; i <= 20; ++i)
     for (int j = 0; i + j <= 20; ++j) tie_rays.push_back(make_ray({i / 20.0f, j / 20.0f, 1.0f}, {0, 0, -1}));
   check_same(*tie_accel, tie_rays);
+}
+
+TEST_CASE("Embree's compact layout gives the same hits as the default one", "[accel]") {
+  // embree_compact_from_triangles switches big scenes to RTC_SCENE_FLAG_COMPACT; the renderer's
+  // images must not depend on that choice. Camera rays and incoherent rays over the default scene.
+  const bool robust = GENERATE(true, false);
+  INFO("robust " << robust);
+  const rt::Scene scene = rt::make_default_scene();
+  const rt::FlatScene flat = rt::flatten_scene(scene);
+  rt::AccelOptions usual, compact;
+  usual.embree_robust = compact.embree_robust = robust;
+  usual.embree_compact_from_triangles = flat.triangle_count() + 1;
+  compact.embree_compact_from_triangles = 0;
+  const std::unique_ptr<rt::Accel> a = rt::build_accel(rt::AccelKind::embree, flat, usual);
+  const std::unique_ptr<rt::Accel> b = rt::build_accel(rt::AccelKind::embree, flat, compact);
+  const rt::CameraFrame frame = rt::make_camera_frame(scene.camera, 96, 72, "default");
+  std::vector<rt::Ray> rays;
+  for (int y = 0; y < 72; ++y)
+    for (int x = 0; x < 96; ++x) rays.push_back(rt::ray_through_pixel(frame, x, y));
+  std::mt19937_64 random(7);
+  std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+  for (int i = 0; i < 5000; ++i)
+    rays.push_back(make_ray({2 * unit(random), 1 + unit(random), 2 * unit(random)}, {unit(random), unit(random), unit(random)}));
+  std::size_t found = 0, mismatches = 0, occlusion_mismatches = 0;
+  for (const rt::Ray& ray : rays) {
+    const rt::Hit ha = a->intersect(ray), hb = b->intersect(ray);
+    found += ha.found();
+    mismatches += !(ha.primitive == hb.primitive && ha.t == hb.t && ha.u == hb.u && ha.v == hb.v);
+    occlusion_mismatches += a->occluded(ray) != b->occluded(ray);
+  }
+  CHECK(mismatches == 0);
+  CHECK(occlusion_mismatches == 0);
+  CHECK(found > rays.size() / 4);
 }

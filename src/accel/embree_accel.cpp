@@ -345,6 +345,9 @@ EmbreeAccel::EmbreeAccel(const FlatScene& flat, const AccelOptions& options) : i
   // their own; occlusion queries pass no filter.
   rtcSetSceneFlags(impl_->scene, static_cast<RTCSceneFlags>(
                                      RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION |
+                                     (flat.triangle_count() >= options.embree_compact_from_triangles
+                                          ? RTC_SCENE_FLAG_COMPACT
+                                          : RTC_SCENE_FLAG_NONE) |
                                      (options.embree_robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE)));
   rtcSetSceneBuildQuality(impl_->scene, to_embree(options.embree_quality));
   impl_->user_data = {&flat, user_box_padding(flat)};

@@ -200,6 +200,7 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
   FlattenOptions flatten_options;
   flatten_options.sphere_tessellation = args.sphere_tessellation;
   const FlatScene flat = flatten_scene(scene, flatten_options);
+  release_object_meshes(scene);
   const double flatten_s = seconds_since(phase_start);
   // Notes and warnings only once the scene has loaded and flattened: a failing run prints one line.
   if (!args.quiet) print_notices(args.scene, report, scene);

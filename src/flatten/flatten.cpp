@@ -191,4 +191,9 @@ FlatScene flatten_scene(const Scene& scene, const FlattenOptions& options) {
   return flat;
 }
 
+void release_object_meshes(Scene& scene) {
+  for (Node& node : scene.nodes)
+    for (Model& model : node.models) model.mesh.reset();
+}
+
 }  // namespace rt

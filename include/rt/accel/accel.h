@@ -3,6 +3,7 @@
 // Both answer the same two queries on the same FlatScene and return the same minimal hit;
 // shading data (point, normal, material) is derived from the hit once, in shared code.
 
+#include <cstddef>
 #include <cstdint>
 #include <limits>
 #include <memory>
@@ -65,6 +66,11 @@ struct AccelOptions {
   bool embree_robust = true;
   EmbreeQuality embree_quality = EmbreeQuality::medium;  // BVH build quality (RTCBuildQuality)
   EmbreeKernel embree_kernel = EmbreeKernel::native;
+  // RTC_SCENE_FLAG_COMPACT from this many triangles on: BVH leaves index the shared vertex buffer
+  // instead of copying vertices. On a 10M-triangle mesh it cut peak memory by 40 B/triangle and the
+  // build time by half; on the 202k-triangle dragon it traced ~10% slower. The hits are the same
+  // (tests/test_accel.cpp); docs/performance.md has the measurements.
+  std::size_t embree_compact_from_triangles = 2'000'000;
   // A device to build in, shared by the accels of a batch (make_embree_device); null: the accel
   // creates its own.
   std::shared_ptr<EmbreeDevice> embree_device;

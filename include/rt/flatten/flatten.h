@@ -69,4 +69,9 @@ struct FlattenOptions {
 // Throws InputError on a cycle, a singular transform or non-finite results.
 FlatScene flatten_scene(const Scene& scene, const FlattenOptions& options = {});
 
+// Frees the graph's object-space meshes (every Model::mesh becomes null; materials, spheres,
+// lights and camera stay) for callers that have flattened the scene and render from the FlatScene,
+// which no longer needs them: 24 bytes per triangle less while the BVH is built.
+void release_object_meshes(Scene& scene);
+
 }  // namespace rt
