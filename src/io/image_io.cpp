@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <csetjmp>
 #include <filesystem>
 #include <system_error>
 
@@ -49,26 +50,51 @@ namespace {
 // Formats rt encodes itself, without loading OpenImageIO (oiio_module.h says why).
 bool is_native_format(const std::string& ext) { return ext == ".png" || ext == ".ppm"; }
 
-// 8-bit RGB PNG through libpng's simplified API (default zlib compression; libpng tags 8-bit
-// output as sRGB, which is how the quantised values are meant to be displayed).
+// libpng reports errors through a callback that must not return; it jumps back to write_png.
+[[noreturn]] void on_png_error(png_structp png, png_const_charp message) {
+  *static_cast<std::string*>(png_get_error_ptr(png)) = message;
+  png_longjmp(png, 1);
+}
+
+void on_png_warning(png_structp, png_const_charp) {}
+
+void append_png_bytes(png_structp png, png_bytep data, png_size_t size) {
+  auto* out = static_cast<std::vector<unsigned char>*>(png_get_io_ptr(png));
+  out->insert(out->end(), data, data + size);
+}
+
+// The libpng calls that may fail, in a frame holding no object with a destructor, as setjmp asks.
+bool write_png(png_structp png, png_infop info, std::vector<unsigned char>* out, png_bytepp rows, int width,
+               int height) {
+  if (setjmp(png_jmpbuf(png))) return false;
+  png_set_write_fn(png, out, &append_png_bytes, nullptr);
+  png_set_IHDR(png, info, static_cast<png_uint_32>(width), static_cast<png_uint_32>(height), 8, PNG_COLOR_TYPE_RGB,
+               PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  png_set_sRGB(png, info, PNG_sRGB_INTENT_PERCEPTUAL);
+  // zlib level 3 and the Up filter on every row: libpng's default (level 6, the best of five
+  // filters per row) took 0.15-0.28 s for a 1024x1024 render, this 0.04-0.07 s, for files 1-50%
+  // larger (docs/performance.md).
+  png_set_compression_level(png, 3);
+  png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_FILTER_UP);
+  png_write_info(png, info);
+  png_write_image(png, rows);
+  png_write_end(png, nullptr);
+  return true;
+}
+
+// 8-bit RGB PNG, tagged sRGB (how the quantised values are meant to be displayed).
 std::vector<unsigned char> encode_png(const Image& image, const std::vector<std::uint8_t>& rgb8, const std::string& path) {
-  png_image png{};
-  png.version = PNG_IMAGE_VERSION;
-  png.width = static_cast<png_uint_32>(image.width);
-  png.height = static_cast<png_uint_32>(image.height);
-  png.format = PNG_FORMAT_RGB;
-  png_alloc_size_t size = 0;
+  std::string error = "out of memory";
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &error, &on_png_error, &on_png_warning);
+  png_infop info = png ? png_create_info_struct(png) : nullptr;
+  std::vector<png_bytep> rows(static_cast<std::size_t>(image.height));
+  for (int y = 0; y < image.height; ++y)
+    rows[std::size_t(y)] = const_cast<png_bytep>(rgb8.data() + std::size_t(y) * std::size_t(image.width) * 3);
   std::vector<unsigned char> encoded;
-  if (png_image_write_to_memory(&png, nullptr, &size, 0, rgb8.data(), 0, nullptr)) {
-    encoded.resize(size);
-    if (png_image_write_to_memory(&png, encoded.data(), &size, 0, rgb8.data(), 0, nullptr)) {
-      encoded.resize(size);
-      return encoded;
-    }
-  }
-  const std::string message = png.message;
-  png_image_free(&png);
-  throw RuntimeError(fmt::format("{}: cannot encode the image: {}", path, message));
+  const bool ok = info && write_png(png, info, &encoded, rows.data(), image.width, image.height);
+  png_destroy_write_struct(&png, &info);
+  if (!ok) throw RuntimeError(fmt::format("{}: cannot encode the image: {}", path, error));
+  return encoded;
 }
 
 // Binary PPM (P6), maxval 255.

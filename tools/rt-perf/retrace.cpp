@@ -6,6 +6,7 @@
 #include <atomic>
 #include <chrono>
 #include <memory>
+#include <utility>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -79,7 +80,7 @@ int run_retrace(const RetraceArgs& args) {
                                    queries.coherent.size() + queries.closest.size(), queries.shadow.size(),
                                    recorded.rays.camera + recorded.rays.reflection, recorded.rays.shadow));
 
-  std::vector<double> render_s, retrace_s, ratios;
+  std::vector<double> render_s, retrace_s, ratios, coherent_s, closest_s, shadow_s;
   RetraceCounts counts;
   for (int run = 0; run < args.runs; ++run) {
     const double render = render_image(scene, flat, *accel, options).seconds;
@@ -87,6 +88,9 @@ int run_retrace(const RetraceArgs& args) {
     render_s.push_back(render);
     retrace_s.push_back(again);
     ratios.push_back(render / again);
+    coherent_s.push_back(counts.coherent_s);
+    closest_s.push_back(counts.closest_s);
+    shadow_s.push_back(counts.shadow_s);
     if (!args.json)
       fmt::print(stderr, "rt-perf: run {} of {}: render {:.3f} s, re-trace {:.3f} s\n", run + 1, args.runs, render, again);
   }
@@ -105,6 +109,9 @@ int run_retrace(const RetraceArgs& args) {
   json["render_s"] = median(render_s);
   json["retrace_s"] = median(retrace_s);
   json["ratio"] = median(ratios);
+  json["retrace_camera_s"] = median(coherent_s);
+  json["retrace_reflection_s"] = median(closest_s);
+  json["retrace_shadow_s"] = median(shadow_s);
   json["render_s_all"] = render_s;
   json["retrace_s_all"] = retrace_s;
   if (args.json) {
@@ -115,6 +122,8 @@ int run_retrace(const RetraceArgs& args) {
                queries.total(), queries.coherent.size(), queries.closest.size(), queries.shadow.size());
     fmt::print("render phase {:.4f} s, re-trace of its rays {:.4f} s (medians of {}); median ratio render / re-trace "
                "{:.2f}\n", median(render_s), median(retrace_s), args.runs, median(ratios));
+    fmt::print("re-trace by kind (medians): camera packets {:.4f} s, reflection {:.4f} s, shadow {:.4f} s\n",
+               median(coherent_s), median(closest_s), median(shadow_s));
   }
   return 0;
 }
@@ -164,6 +173,12 @@ RetraceCounts retrace(const Accel& accel, const RecordingAccel::Queries& queries
   std::vector<std::size_t> group_start(queries.group_sizes.size() + 1, 0);
   for (std::size_t g = 0; g < queries.group_sizes.size(); ++g) group_start[g + 1] = group_start[g] + queries.group_sizes[g];
   std::atomic<std::uint64_t> hits{0}, occluded{0};
+  RetraceCounts counts;
+  auto start = std::chrono::steady_clock::now();
+  const auto lap = [&start] {
+    const auto now = std::chrono::steady_clock::now();
+    return std::chrono::duration<double>(now - std::exchange(start, now)).count();
+  };
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, queries.group_sizes.size(), 64), [&](const auto& range) {
     FlushDenormals flush;
     Hit found[64];
@@ -178,19 +193,24 @@ RetraceCounts retrace(const Accel& accel, const RecordingAccel::Queries& queries
     }
     hits += n;
   });
+  counts.coherent_s = lap();
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, queries.closest.size(), 1024), [&](const auto& range) {
     FlushDenormals flush;
     std::uint64_t n = 0;
     for (std::size_t i = range.begin(); i != range.end(); ++i) n += accel.intersect(queries.closest[i]).found();
     hits += n;
   });
+  counts.closest_s = lap();
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, queries.shadow.size(), 1024), [&](const auto& range) {
     FlushDenormals flush;
     std::uint64_t n = 0;
     for (std::size_t i = range.begin(); i != range.end(); ++i) n += accel.occluded(queries.shadow[i]);
     occluded += n;
   });
-  return {hits.load(), occluded.load()};
+  counts.shadow_s = lap();
+  counts.hits = hits.load();
+  counts.occluded = occluded.load();
+  return counts;
 }
 
 std::function<int()> add_retrace_command(CLI::App& app) {

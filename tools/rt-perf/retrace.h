@@ -52,6 +52,7 @@ class RecordingAccel final : public Accel {
 // rays, to check against the render's own counts.
 struct RetraceCounts {
   std::uint64_t hits = 0, occluded = 0;
+  double coherent_s = 0.0, closest_s = 0.0, shadow_s = 0.0;  // wall-clock seconds per kind of query
 };
 
 // Traces `queries` through `accel` as the renderer did (coherent groups as packets, the rest one
