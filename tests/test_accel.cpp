@@ -277,7 +277,7 @@ TEST_CASE("both single-triangle tests solve the seed's system", "[accel]") {
   }
 }
 
-TEST_CASE("intersect_coherent returns exactly what intersect returns, ray by ray", "[accel]") {
+TEST_CASE("intersect_coherent and occluded_coherent answer exactly as single rays do", "[accel]") {
   // Camera rays of the default scene (triangles and analytic spheres) in the renderer's 4x4 blocks
   // plus a tail that fills only part of a packet, and rays through the vertices of the tie scene,
   // where three identical triangles hit at the same t: packets must keep the lowest index too.
@@ -316,6 +316,12 @@ TEST_CASE("intersect_coherent returns exactly what intersect returns, ray by ray
     }
     CHECK(mismatches == 0);
     CHECK(found > 0);
+    // Shadow queries: occluded_coherent answers as occluded does, ray by ray.
+    std::vector<std::uint8_t> blocked(rays.size());
+    accel.occluded_coherent(rays, blocked);
+    std::size_t occlusion_mismatches = 0;
+    for (std::size_t i = 0; i < rays.size(); ++i) occlusion_mismatches += (blocked[i] == 1) != accel.occluded(rays[i]);
+    CHECK(occlusion_mismatches == 0);
   };
 
   const rt::Scene scene = rt::make_default_scene();

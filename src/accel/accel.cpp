@@ -12,6 +12,10 @@ void Accel::intersect_coherent(std::span<const Ray> rays, std::span<Hit> hits) c
   for (std::size_t i = 0; i < rays.size(); ++i) hits[i] = intersect(rays[i]);
 }
 
+void Accel::occluded_coherent(std::span<const Ray> rays, std::span<std::uint8_t> blocked) const {
+  for (std::size_t i = 0; i < rays.size(); ++i) blocked[i] = occluded(rays[i]) ? 1 : 0;
+}
+
 std::unique_ptr<Accel> build_accel(AccelKind kind, const FlatScene& scene, const AccelOptions& options) {
   switch (kind) {
     case AccelKind::embree: return std::make_unique<EmbreeAccel>(scene, options);

@@ -449,6 +449,39 @@ void EmbreeAccel::intersect_coherent(std::span<const Ray> rays, std::span<Hit> h
   }
 }
 
+void EmbreeAccel::occluded_coherent(std::span<const Ray> rays, std::span<std::uint8_t> blocked) const {
+  if (!impl_->packets_exact) {  // as in intersect_coherent
+    Accel::occluded_coherent(rays, blocked);
+    return;
+  }
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+  for (std::size_t first = 0; first < rays.size(); first += kPacketSize) {
+    const auto lanes = static_cast<unsigned>(std::min<std::size_t>(kPacketSize, rays.size() - first));
+    alignas(64) RTCRay16 packet;
+    alignas(64) int valid[kPacketSize];
+    for (unsigned i = 0; i < kPacketSize; ++i) {
+      valid[i] = i < lanes ? -1 : 0;
+      const Ray& ray = rays[first + (i < lanes ? i : 0)];
+      packet.org_x[i] = ray.origin.x;
+      packet.org_y[i] = ray.origin.y;
+      packet.org_z[i] = ray.origin.z;
+      packet.tnear[i] = ray.tnear;
+      packet.dir_x[i] = ray.direction.x;
+      packet.dir_y[i] = ray.direction.y;
+      packet.dir_z[i] = ray.direction.z;
+      packet.time[i] = 0.0f;
+      packet.tfar[i] = ray.tfar;
+      packet.mask[i] = 0xFFFFFFFFu;  // as in fill_ray
+      packet.id[i] = i;
+      packet.flags[i] = 0;
+    }
+    rtcOccluded16(valid, impl_->scene, &context, &packet);
+    for (unsigned i = 0; i < lanes; ++i) blocked[first + i] = packet.tfar[i] == -kInfinity ? 1 : 0;
+  }
+}
+
 bool EmbreeAccel::occluded(const Ray& ray) const {
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);

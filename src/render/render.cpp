@@ -94,6 +94,11 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   result.tile_done.assign(std::size_t(tile_count), 0);
   struct ThreadState {
     RayCounts counts;
+    // Buffers of the camera blocks, reused from block to block.
+    PendingShading pending;
+    std::vector<std::uint8_t> blocked, grouped_blocked;
+    std::vector<std::uint32_t> by_light;
+    std::vector<Ray> grouped_rays;
     std::uint64_t non_finite = 0;
     std::uint64_t first_non_finite = ~std::uint64_t(0);  // row-major pixel index
   };
@@ -111,42 +116,102 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   };
 
   // Camera rays are traced kBlock x kBlock pixels at a time, one packet per sample index (Embree:
-  // one 16-ray packet), then shaded one by one. When timed, a timed pixel is charged an equal share
-  // of its packet's ticks, so the shares stay fractions of the timed pixels' loop ticks.
+  // one 16-ray packet); their shadow rays are recorded, traced together light by light, and each
+  // pixel's terms then summed as shade_hit sums them (PendingShading). When timed, a timed pixel is
+  // charged an equal share of its packets' ticks, so the shares stay fractions of the timed
+  // pixels' loop ticks.
   constexpr int kBlock = 4;
+  constexpr int kBlockPixels = kBlock * kBlock;
+  const std::size_t light_count = scene.lights.size();
   const auto render_block = [&](int bx0, int by0, int bx1, int by1, ThreadState& state) {
     RayCounts& counts = state.counts;
-    std::array<int, kBlock * kBlock> xs, ys;
+    PendingShading& pending = state.pending;
+    std::array<int, kBlockPixels> xs, ys;
     int n = 0;
     for (int y = by0; y < by1; ++y)
       for (int x = bx0; x < bx1; ++x, ++n) {
         xs[n] = x;
         ys[n] = y;
       }
-    std::array<Vec3d, kBlock * kBlock> sums{};  // linear RGB, double: the box filter's average (spp > 1)
-    std::array<Ray, kBlock * kBlock> rays;
-    std::array<Hit, kBlock * kBlock> hits;
+    std::array<bool, kBlockPixels> timed{};
+    std::array<std::uint64_t, kBlockPixels> ticks{};  // per timed pixel: its loop ticks this sample
+    if (options.time_queries)
+      for (int k = 0; k < n; ++k) timed[k] = is_timing_sample(xs[k], ys[k]);
+    std::array<Vec3d, kBlockPixels> sums{};  // linear RGB, double: the box filter's average (spp > 1)
+    std::array<Ray, kBlockPixels> rays;
+    std::array<Hit, kBlockPixels> hits;
     for (int s = 0; s < spp; ++s) {
       for (int k = 0; k < n; ++k)
         rays[k] = spp == 1 ? ray_through_pixel(frame, xs[k], ys[k]) : ray_through_pixel_sample(frame, xs[k], ys[k], s, spp);
-      const std::uint64_t packet_start = options.time_queries ? __rdtsc() : 0;
+      std::uint64_t start = options.time_queries ? __rdtsc() : 0;
       accel.intersect_coherent(std::span(rays.data(), std::size_t(n)), std::span(hits.data(), std::size_t(n)));
-      const std::uint64_t packet_share = options.time_queries ? (__rdtsc() - packet_start) / std::uint64_t(n) : 0;
+      if (options.time_queries) {
+        const std::uint64_t share = (__rdtsc() - start) / std::uint64_t(n);
+        if (counts.intersect_ticks_per_depth.empty()) counts.intersect_ticks_per_depth.resize(1, 0);
+        for (int k = 0; k < n; ++k)
+          if (timed[k]) {
+            counts.intersect_ticks_per_depth[0] += share;
+            ticks[k] = share;
+          }
+      }
+
+      pending.clear();
       for (int k = 0; k < n; ++k) {
-        const int x = xs[k], y = ys[k];
-        const bool timed = options.time_queries && is_timing_sample(x, y);
-        const std::uint64_t start = timed ? __rdtsc() : 0;
-        const std::uint64_t pixel = std::uint64_t(y) * std::uint64_t(width) + std::uint64_t(x);
-        const Color c = guarded(shade_hit(timed ? timed_context : context, rays[k], hits[k], 0, counts), state, pixel);
+        if (timed[k]) start = __rdtsc();
+        shade_camera_hit(timed[k] ? timed_context : context, rays[k], hits[k], counts, pending);
+        if (timed[k]) ticks[k] += __rdtsc() - start;
+      }
+
+      // Shadow rays light by light, so that a packet goes towards one light (a single light: as recorded).
+      const std::size_t shadow_count = pending.shadow_rays.size();
+      state.blocked.assign(shadow_count, 0);
+      if (shadow_count > 0 && light_count == 1) {
+        start = options.time_queries ? __rdtsc() : 0;
+        accel.occluded_coherent(pending.shadow_rays, state.blocked);
+      } else if (shadow_count > 0) {
+        state.by_light.clear();
+        for (std::size_t light = 0; light < light_count; ++light)
+          for (std::size_t i = 0; i < shadow_count; ++i)
+            if (pending.shadow_lights[i] == light) state.by_light.push_back(static_cast<std::uint32_t>(i));
+        state.grouped_rays.resize(shadow_count);
+        state.grouped_blocked.resize(shadow_count);
+        for (std::size_t i = 0; i < shadow_count; ++i) state.grouped_rays[i] = pending.shadow_rays[state.by_light[i]];
+        start = options.time_queries ? __rdtsc() : 0;
+        for (std::size_t first = 0; first < shadow_count;) {
+          std::size_t last = first + 1;
+          while (last < shadow_count && pending.shadow_lights[state.by_light[last]] == pending.shadow_lights[state.by_light[first]])
+            ++last;
+          accel.occluded_coherent(std::span(state.grouped_rays).subspan(first, last - first),
+                                  std::span(state.grouped_blocked).subspan(first, last - first));
+          first = last;
+        }
+        for (std::size_t i = 0; i < shadow_count; ++i) state.blocked[state.by_light[i]] = state.grouped_blocked[i];
+      }
+      if (shadow_count > 0 && options.time_queries) {
+        const std::uint64_t share = (__rdtsc() - start) / std::uint64_t(shadow_count);
+        for (int k = 0; k < n; ++k) {
+          if (!timed[k]) continue;
+          const PendingShading::Pixel& p = pending.pixels[std::size_t(k)];
+          for (std::uint32_t t = p.first_term; t < p.first_term + p.term_count; ++t) {
+            const std::uint32_t query = pending.terms[t].query;
+            if (query == PendingShading::kNoQuery) continue;
+            const std::uint32_t light = pending.shadow_lights[query];
+            if (counts.shadow_ticks_per_light.size() <= light) counts.shadow_ticks_per_light.resize(light + 1, 0);
+            counts.shadow_ticks_per_light[light] += share;
+            ticks[k] += share;
+          }
+        }
+      }
+
+      for (int k = 0; k < n; ++k) {
+        if (timed[k]) start = __rdtsc();
+        const std::uint64_t pixel = std::uint64_t(ys[k]) * std::uint64_t(width) + std::uint64_t(xs[k]);
+        const Color c = guarded(finish_camera_hit(pending, std::size_t(k), state.blocked), state, pixel);
         if (spp == 1)
-          result.image.at(x - region.x0, y - region.y0) = c;
+          result.image.at(xs[k] - region.x0, ys[k] - region.y0) = c;
         else
           sums[k] += Vec3d(c);
-        if (timed) {
-          if (counts.intersect_ticks_per_depth.empty()) counts.intersect_ticks_per_depth.resize(1, 0);
-          counts.intersect_ticks_per_depth[0] += packet_share;
-          counts.loop_ticks += packet_share + (__rdtsc() - start);
-        }
+        if (timed[k]) counts.loop_ticks += ticks[k] + (__rdtsc() - start);
       }
     }
     if (spp > 1)

@@ -75,14 +75,66 @@ Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCo
   return shade_hit(context, ray, hit, depth, counts, throughput);
 }
 
-Color shade_hit(const ShadingContext& context, const Ray& ray, const Hit& hit, int depth, RayCounts& counts,
-                const Vec3d& throughput) {
-  if (!hit.found()) {
-    if (context.trace)
-      note(context, depth, "{} ray {}: miss, background {}", depth == 0 ? "camera" : "reflection", format_ray(ray),
-         format_vec(Vec3d(context.scene.settings.background)));
-    return context.scene.settings.background;
+namespace {
+
+// What shade_surface does with each light's unshadowed term: `lit` adds a term that needs no shadow
+// query, `query` one that is added only if `shadow_ray` is unblocked, in light order; `finish`
+// receives the emission and the reflection term (added last; `has_reflection` false when no
+// reflection ray was traced). ImmediateShadows traces each query at once; DeferredShadows (the
+// camera blocks of render_image) records them to be traced as packets, then sums in the same order.
+struct ImmediateShadows {
+  const ShadingContext& context;
+  RayCounts& counts;
+  int depth;
+  Vec3d radiance{0.0};
+
+  void begin(const Vec3d& emission) { radiance = emission; }
+  void lit(std::size_t light, const Vec3d& term) {
+    if (context.trace) note(context, depth, "  light {}: visible, term {}", light, format_vec(term));
+    radiance += term;
   }
+  void query(std::size_t light, const Vec3d& term, const Ray& shadow_ray) {
+    ++counts.shadow;
+    add_at(counts.shadow_per_light, light);
+    const std::uint64_t start = context.time_queries ? __rdtsc() : 0;
+    const bool blocked = context.accel.occluded(shadow_ray);
+    if (context.time_queries) add_at(counts.shadow_ticks_per_light, light, __rdtsc() - start);
+    if (context.trace) {
+      note(context, depth, "  light {}: shadow ray {}: {}", light, format_ray(shadow_ray), blocked ? "blocked" : "clear");
+      note(context, depth, "  light {}: {}, term {}", light, blocked ? "in shadow" : "visible", format_vec(term));
+    }
+    if (!blocked) radiance += term;
+  }
+  void add_reflection(const Vec3d& reflection) { radiance += reflection; }
+};
+
+struct DeferredShadows {
+  PendingShading& pending;
+  RayCounts& counts;
+  PendingShading::Pixel pixel{};
+
+  void begin(const Vec3d& emission) {
+    pixel.emission = emission;
+    pixel.first_term = static_cast<std::uint32_t>(pending.terms.size());
+  }
+  void lit(std::size_t, const Vec3d& term) { pending.terms.push_back({term, PendingShading::kNoQuery}); }
+  void query(std::size_t light, const Vec3d& term, const Ray& shadow_ray) {
+    ++counts.shadow;
+    add_at(counts.shadow_per_light, light);
+    pending.terms.push_back({term, static_cast<std::uint32_t>(pending.shadow_rays.size())});
+    pending.shadow_rays.push_back(shadow_ray);
+    pending.shadow_lights.push_back(static_cast<std::uint32_t>(light));
+  }
+  void add_reflection(const Vec3d& reflection) {
+    pixel.reflection = reflection;
+    pixel.has_reflection = true;
+  }
+};
+
+// shade_hit's work for a hit, with the shadow queries left to `shadows`.
+template <class Shadows>
+void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit, int depth, RayCounts& counts,
+                   const Vec3d& throughput, Shadows& shadows) {
   add_at(counts.hits_per_depth, std::size_t(depth));
 
   // Surface at the hit, world space, double. The point is interpolated from the triangle's
@@ -135,18 +187,7 @@ Color shade_hit(const ShadingContext& context, const Ray& ray, const Hit& hit, i
       note(context, depth, "  {}: not traced ({})", light < 0 ? "reflection" : fmt::format("light {}", light),
            to_string(rule));
   };
-  const auto trace_shadow = [&](const Ray& shadow_ray, std::size_t light) {
-    ++counts.shadow;
-    add_at(counts.shadow_per_light, light);
-    const std::uint64_t start = context.time_queries ? __rdtsc() : 0;
-    const bool blocked = context.accel.occluded(shadow_ray);
-    if (context.time_queries) add_at(counts.shadow_ticks_per_light, light, __rdtsc() - start);
-    if (context.trace)
-      note(context, depth, "  light {}: shadow ray {}: {}", light, format_ray(shadow_ray), blocked ? "blocked" : "clear");
-    return blocked;
-  };
-
-  Vec3d radiance(material.emission);
+  shadows.begin(Vec3d(material.emission));
   for (std::size_t j = 0; j < context.scene.lights.size(); ++j) {
     const Light& light = context.scene.lights[j];
     const LightPlan& light_plan = plan.lights[j];
@@ -196,7 +237,6 @@ Color shade_hit(const ShadingContext& context, const Ray& ray, const Hit& hit, i
       skip(SkipRule::dim_light, light_index);
       continue;
     }
-    bool visible = true;
     if (depth == 0 && light_plan.at_eye) {
       // From a primary hit, the segment to a light at the eye is the camera ray's own, and the
       // camera ray found nothing closer. Pruned, the shadow ray is skipped; unpruned, it retraces
@@ -205,13 +245,15 @@ Color shade_hit(const ShadingContext& context, const Ray& ray, const Hit& hit, i
       // rounding where it grazes a silhouette edge).
       if (prune) {
         skip(SkipRule::light_at_eye, light_index);
+        shadows.lit(j, term);
       } else {
         Ray shadow_ray = ray;
         shadow_ray.tfar = hit.t * (1.0f - kRetraceMargin);
-        visible = !trace_shadow(shadow_ray, j);
+        shadows.query(j, term, shadow_ray);
       }
     } else if (plan.convex && glm::dot(surface.geometric_normal, to_light) > kConvexFacingMargin) {
       skip(SkipRule::convex_facing, light_index);  // the ray stays in the open half-space in front of the surface
+      shadows.lit(j, term);
     } else {
       Ray shadow_ray;
       shadow_ray.origin = offset_ray_origin(context.ray_offset, surface, to_light);
@@ -221,14 +263,12 @@ Color shade_hit(const ShadingContext& context, const Ray& ray, const Hit& hit, i
       if (light_distance > 0.0) {
         shadow_ray.direction = Vec3f(to_light);
         shadow_ray.tfar = static_cast<float>(light_distance);
-        visible = !trace_shadow(shadow_ray, j);
+        shadows.query(j, term, shadow_ray);
       } else {
         skip(SkipRule::light_on_surface, light_index);  // closer than the margin: nothing can be in between
+        shadows.lit(j, term);
       }
     }
-    if (context.trace)
-      note(context, depth, "  light {}: {}, term {}", j, visible ? "visible" : "in shadow", format_vec(term));
-    if (visible) radiance += term;
   }
 
   if (depth < context.scene.settings.max_depth) {
@@ -245,10 +285,54 @@ Color shade_hit(const ShadingContext& context, const Ray& ray, const Hit& hit, i
       ++counts.reflection;
       add_at(counts.reflection_per_depth, std::size_t(depth) + 1);
       if (context.trace) note(context, depth, "  reflection, weight {}:", format_vec(reflective));
-      radiance += reflective * Vec3d(find_color(context, reflection_ray, depth + 1, counts, next_throughput));
+      shadows.add_reflection(reflective * Vec3d(find_color(context, reflection_ray, depth + 1, counts, next_throughput)));
     }
   }
-  if (context.trace) note(context, depth, "  colour {}", format_vec(radiance));
+}
+
+}  // namespace
+
+Color shade_hit(const ShadingContext& context, const Ray& ray, const Hit& hit, int depth, RayCounts& counts,
+                const Vec3d& throughput) {
+  if (!hit.found()) {
+    if (context.trace)
+      note(context, depth, "{} ray {}: miss, background {}", depth == 0 ? "camera" : "reflection", format_ray(ray),
+           format_vec(Vec3d(context.scene.settings.background)));
+    return context.scene.settings.background;
+  }
+  ImmediateShadows shadows{context, counts, depth};
+  shade_surface(context, ray, hit, depth, counts, throughput, shadows);
+  if (context.trace) note(context, depth, "  colour {}", format_vec(shadows.radiance));
+  return Color(shadows.radiance);
+}
+
+void PendingShading::clear() {
+  pixels.clear();
+  terms.clear();
+  shadow_rays.clear();
+  shadow_lights.clear();
+}
+
+void shade_camera_hit(const ShadingContext& context, const Ray& ray, const Hit& hit, RayCounts& counts,
+                      PendingShading& pending) {
+  DeferredShadows shadows{pending, counts};
+  if (hit.found()) {
+    shade_surface(context, ray, hit, 0, counts, Vec3d(1.0), shadows);
+    shadows.pixel.term_count = static_cast<std::uint32_t>(pending.terms.size()) - shadows.pixel.first_term;
+  } else {
+    shadows.pixel.emission = Vec3d(context.scene.settings.background);
+  }
+  pending.pixels.push_back(shadows.pixel);
+}
+
+Color finish_camera_hit(const PendingShading& pending, std::size_t pixel, std::span<const std::uint8_t> blocked) {
+  const PendingShading::Pixel& p = pending.pixels[pixel];
+  Vec3d radiance = p.emission;
+  for (std::uint32_t i = p.first_term; i < p.first_term + p.term_count; ++i) {
+    const PendingShading::Term& t = pending.terms[i];
+    if (t.query == PendingShading::kNoQuery || !blocked[t.query]) radiance += t.term;
+  }
+  if (p.has_reflection) radiance += p.reflection;
   return Color(radiance);
 }
 

@@ -75,9 +75,9 @@ int run_retrace(const RetraceArgs& args) {
   std::uint64_t render_hits = 0;
   for (const std::uint64_t h : recorded.rays.hits_per_depth) render_hits += h;
   if (queries.coherent.size() + queries.closest.size() != recorded.rays.camera + recorded.rays.reflection ||
-      queries.shadow.size() != recorded.rays.shadow)
+      queries.shadow_total() != recorded.rays.shadow)
     throw RuntimeError(fmt::format("recorded {} closest-hit and {} shadow queries, the render counted {} and {}",
-                                   queries.coherent.size() + queries.closest.size(), queries.shadow.size(),
+                                   queries.coherent.size() + queries.closest.size(), queries.shadow_total(),
                                    recorded.rays.camera + recorded.rays.reflection, recorded.rays.shadow));
 
   std::vector<double> render_s, retrace_s, ratios, coherent_s, closest_s, shadow_s;
@@ -104,7 +104,7 @@ int run_retrace(const RetraceArgs& args) {
   json["max_depth"] = scene.settings.max_depth;
   json["triangles"] = flat.triangle_count();
   json["rays"] = {{"camera", queries.coherent.size()}, {"reflection", queries.closest.size()},
-                  {"shadow", queries.shadow.size()}, {"total", queries.total()}};
+                  {"shadow", queries.shadow_total()}, {"total", queries.total()}};
   json["runs"] = args.runs;
   json["render_s"] = median(render_s);
   json["retrace_s"] = median(retrace_s);
@@ -119,7 +119,7 @@ int run_retrace(const RetraceArgs& args) {
   } else {
     fmt::print("{} ({}x{}, max depth {}, {} triangles): {} rays ({} camera, {} reflection, {} shadow)\n", scene.source,
                scene.settings.width, scene.settings.height, scene.settings.max_depth, flat.triangle_count(),
-               queries.total(), queries.coherent.size(), queries.closest.size(), queries.shadow.size());
+               queries.total(), queries.coherent.size(), queries.closest.size(), queries.shadow_total());
     fmt::print("render phase {:.4f} s, re-trace of its rays {:.4f} s (medians of {}); median ratio render / re-trace "
                "{:.2f}\n", median(render_s), median(retrace_s), args.runs, median(ratios));
     fmt::print("re-trace by kind (medians): camera packets {:.4f} s, reflection {:.4f} s, shadow {:.4f} s\n",
@@ -152,6 +152,13 @@ void RecordingAccel::intersect_coherent(std::span<const Ray> rays, std::span<Hit
   inner_.intersect_coherent(rays, hits);
 }
 
+void RecordingAccel::occluded_coherent(std::span<const Ray> rays, std::span<std::uint8_t> blocked) const {
+  Queries& log = logs_->per_thread.local().queries;
+  log.coherent_shadow.insert(log.coherent_shadow.end(), rays.begin(), rays.end());
+  log.shadow_group_sizes.push_back(static_cast<std::uint32_t>(rays.size()));
+  inner_.occluded_coherent(rays, blocked);
+}
+
 bool RecordingAccel::occluded(const Ray& ray) const {
   logs_->per_thread.local().queries.shadow.push_back(ray);
   return inner_.occluded(ray);
@@ -165,13 +172,25 @@ RecordingAccel::Queries RecordingAccel::queries() const {
     append(all.group_sizes, log.queries.group_sizes);
     append(all.closest, log.queries.closest);
     append(all.shadow, log.queries.shadow);
+    append(all.coherent_shadow, log.queries.coherent_shadow);
+    append(all.shadow_group_sizes, log.queries.shadow_group_sizes);
   }
   return all;
 }
 
+namespace {
+
+std::vector<std::size_t> group_starts(const std::vector<std::uint32_t>& sizes) {
+  std::vector<std::size_t> start(sizes.size() + 1, 0);
+  for (std::size_t g = 0; g < sizes.size(); ++g) start[g + 1] = start[g] + sizes[g];
+  return start;
+}
+
+}  // namespace
+
 RetraceCounts retrace(const Accel& accel, const RecordingAccel::Queries& queries) {
-  std::vector<std::size_t> group_start(queries.group_sizes.size() + 1, 0);
-  for (std::size_t g = 0; g < queries.group_sizes.size(); ++g) group_start[g + 1] = group_start[g] + queries.group_sizes[g];
+  const std::vector<std::size_t> group_start = group_starts(queries.group_sizes);
+  const std::vector<std::size_t> shadow_group_start = group_starts(queries.shadow_group_sizes);
   std::atomic<std::uint64_t> hits{0}, occluded{0};
   RetraceCounts counts;
   auto start = std::chrono::steady_clock::now();
@@ -205,6 +224,21 @@ RetraceCounts retrace(const Accel& accel, const RecordingAccel::Queries& queries
     FlushDenormals flush;
     std::uint64_t n = 0;
     for (std::size_t i = range.begin(); i != range.end(); ++i) n += accel.occluded(queries.shadow[i]);
+    occluded += n;
+  });
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, queries.shadow_group_sizes.size(), 64), [&](const auto& range) {
+    FlushDenormals flush;
+    std::uint8_t blocked[64];
+    std::uint64_t n = 0;
+    for (std::size_t g = range.begin(); g != range.end(); ++g) {
+      const std::size_t count = queries.shadow_group_sizes[g];
+      for (std::size_t first = 0; first < count; first += 64) {
+        const std::size_t part = std::min<std::size_t>(64, count - first);
+        accel.occluded_coherent(std::span(queries.coherent_shadow).subspan(shadow_group_start[g] + first, part),
+                                std::span(blocked, part));
+        for (std::size_t i = 0; i < part; ++i) n += blocked[i];
+      }
+    }
     occluded += n;
   });
   counts.shadow_s = lap();

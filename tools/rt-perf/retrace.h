@@ -30,6 +30,7 @@ class RecordingAccel final : public Accel {
   Hit intersect(const Ray& ray) const override;
   void intersect_coherent(std::span<const Ray> rays, std::span<Hit> hits) const override;
   bool occluded(const Ray& ray) const override;
+  void occluded_coherent(std::span<const Ray> rays, std::span<std::uint8_t> blocked) const override;
   std::string_view name() const override { return inner_.name(); }
 
   // The queries of all threads, concatenated.
@@ -38,7 +39,10 @@ class RecordingAccel final : public Accel {
     std::vector<std::uint32_t> group_sizes;    // rays per intersect_coherent call, in order
     std::vector<Ray> closest;                  // intersect rays
     std::vector<Ray> shadow;                   // occluded rays
-    std::uint64_t total() const { return coherent.size() + closest.size() + shadow.size(); }
+    std::vector<Ray> coherent_shadow;          // occluded_coherent rays, group after group
+    std::vector<std::uint32_t> shadow_group_sizes;
+    std::uint64_t total() const { return coherent.size() + closest.size() + shadow.size() + coherent_shadow.size(); }
+    std::uint64_t shadow_total() const { return shadow.size() + coherent_shadow.size(); }
   };
   Queries queries() const;
 

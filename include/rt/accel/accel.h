@@ -93,6 +93,10 @@ class Accel {
   // True when any primitive is hit within [tnear, tfar]. Cheaper than intersect().
   virtual bool occluded(const Ray& ray) const = 0;
 
+  // occluded() of every ray, blocked[i] = 1 or 0 for rays[i], as intersect_coherent does for
+  // closest hits (shadow rays of neighbouring pixels towards one light). This default calls occluded().
+  virtual void occluded_coherent(std::span<const Ray> rays, std::span<std::uint8_t> blocked) const;
+
   virtual std::string_view name() const = 0;
 };
 

@@ -47,6 +47,8 @@ class EmbreeAccel final : public Accel {
   Hit intersect(const Ray& ray) const override;
   // Packets of 16 (rtcIntersect16, coherent), ordered per ray like intersect().
   void intersect_coherent(std::span<const Ray> rays, std::span<Hit> hits) const override;
+  // Packets of 16 (rtcOccluded16, coherent).
+  void occluded_coherent(std::span<const Ray> rays, std::span<std::uint8_t> blocked) const override;
   bool occluded(const Ray& ray) const override;
   std::string_view name() const override { return "embree"; }
 

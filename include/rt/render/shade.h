@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -71,6 +72,39 @@ struct ShadingContext {
 // Computed in double, returned as float32 linear RGB.
 Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCounts& counts,
                  const Vec3d& throughput = Vec3d(1.0));
+
+// Camera hits of neighbouring pixels whose shadow rays are traced together (render_image's blocks):
+// shade_camera_hit records a pixel's unshadowed light terms and shadow rays, the caller answers
+// every shadow ray (Accel::occluded_coherent), and finish_camera_hit sums each pixel's terms in
+// the order shade_hit does, so the colour is bit for bit shade_hit's at depth 0. Buffers are
+// reused across blocks (clear()), so no allocation per ray once they have grown.
+struct PendingShading {
+  static constexpr std::uint32_t kNoQuery = 0xFFFFFFFFu;
+  struct Term {
+    Vec3d term;                 // linear RGB, the light's unshadowed contribution
+    std::uint32_t query = kNoQuery;  // index in shadow_rays; kNoQuery: added without a query
+  };
+  struct Pixel {
+    Vec3d emission{0.0};        // the material's emission, or the background on a miss
+    Vec3d reflection{0.0};      // the reflection term, added last when has_reflection
+    bool has_reflection = false;
+    std::uint32_t first_term = 0, term_count = 0;  // this pixel's range in terms
+  };
+  std::vector<Pixel> pixels;          // in shade_camera_hit's call order
+  std::vector<Term> terms;
+  std::vector<Ray> shadow_rays;       // world space, as shade_hit would trace them
+  std::vector<std::uint32_t> shadow_lights;  // the light of each shadow ray
+  void clear();
+};
+
+// Appends the camera ray `ray`'s pixel (closest hit `hit`) to `pending`; counts as shade_hit
+// does at depth 0 (shadow rays counted when recorded; their ticks are the caller's). Reflection
+// rays are traced at once, one by one.
+void shade_camera_hit(const ShadingContext& context, const Ray& ray, const Hit& hit, RayCounts& counts,
+                      PendingShading& pending);
+
+// The colour of pending pixel `pixel`; blocked[i] answers pending.shadow_rays[i] (1: occluded).
+Color finish_camera_hit(const PendingShading& pending, std::size_t pixel, std::span<const std::uint8_t> blocked);
 
 // find_color for a ray whose closest hit `hit` is already known (camera rays traced together by
 // Accel::intersect_coherent): the same colour, the same counts except the closest-hit query's ticks.
