@@ -50,12 +50,15 @@ void triangulate_face(const ObjFile& obj, const ObjCorner* corners, std::size_t 
   }
 }
 
+constexpr std::uint32_t kUnassigned = UINT32_MAX;
+
 // One mesh from faces of the file: vertices are renumbered densely, in order of first use by the
 // triangles. With `vn` on every corner each distinct (position, normal) pair is a vertex;
 // otherwise each position is, and smooth angle-weighted normals are computed. With a valid `vt`
 // on every corner the texture coordinate joins the key, stored as (u, 1 - v): OBJ puts v = 0 at
-// the image's bottom row, OIIO at its top.
-TriangleMesh build_mesh(const ObjFile& obj, const FaceRuns& runs) {
+// the image's bottom row, OIIO at its top. `position_vertex`: scratch, kUnassigned per position
+// of the file (or empty, then sized here), and left so.
+TriangleMesh build_mesh(const ObjFile& obj, const FaceRuns& runs, std::vector<std::uint32_t>& position_vertex) {
   const std::size_t texcoord_count = obj.texcoord_count(), normal_count = obj.normal_count();
   bool use_texcoords = texcoord_count > 0, use_normals = normal_count > 0;
   std::size_t triangle_count = 0;
@@ -94,16 +97,30 @@ TriangleMesh build_mesh(const ObjFile& obj, const FaceRuns& runs) {
         });
       });
   };
-  std::unordered_map<std::uint64_t, std::uint32_t> vertex_of_key;
-  vertex_of_key.reserve(triangle_count);
-  add_triangles([&](const ObjCorner& corner) {
-    const auto v = static_cast<std::uint64_t>(corner.position);
-    std::uint64_t key = use_normals ? v * normal_count + static_cast<std::uint64_t>(corner.normal) : v;
-    if (use_texcoords) key = key * texcoord_count + static_cast<std::uint64_t>(corner.texcoord);
-    const auto [it, inserted] = vertex_of_key.try_emplace(key, 0);
-    if (inserted) it->second = add_vertex(corner);
-    return it->second;
-  });
+  if (!use_normals && !use_texcoords) {
+    // The key is the position index: a table of the file's positions instead of a hash map.
+    if (position_vertex.empty()) position_vertex.assign(obj.position_count(), kUnassigned);
+    add_triangles([&](const ObjCorner& corner) {
+      std::uint32_t& vertex = position_vertex[static_cast<std::size_t>(corner.position)];
+      if (vertex == kUnassigned) vertex = add_vertex(corner);
+      return vertex;
+    });
+    for (const auto& [first, end] : runs)
+      for_each_face(obj, first, end, [&](const ObjCorner* corners, std::size_t n) {
+        for (std::size_t k = 0; k < n; ++k) position_vertex[static_cast<std::size_t>(corners[k].position)] = kUnassigned;
+      });
+  } else {
+    std::unordered_map<std::uint64_t, std::uint32_t> vertex_of_key;
+    vertex_of_key.reserve(triangle_count);
+    add_triangles([&](const ObjCorner& corner) {
+      const auto v = static_cast<std::uint64_t>(corner.position);
+      std::uint64_t key = use_normals ? v * normal_count + static_cast<std::uint64_t>(corner.normal) : v;
+      if (use_texcoords) key = key * texcoord_count + static_cast<std::uint64_t>(corner.texcoord);
+      const auto [it, inserted] = vertex_of_key.try_emplace(key, 0);
+      if (inserted) it->second = add_vertex(corner);
+      return it->second;
+    });
+  }
   if (!use_normals) compute_vertex_normals(mesh);
   return mesh;
 }
@@ -150,7 +167,8 @@ std::string join(const std::vector<std::string>& names) {
 
 TriangleMesh load_obj_mesh(const std::string& path, const ObjLoadOptions& options) {
   const ObjFile obj = read_obj(path, options);
-  return build_mesh(obj, FaceRuns{{0, obj.face_count()}});
+  std::vector<std::uint32_t> position_vertex;
+  return build_mesh(obj, FaceRuns{{0, obj.face_count()}}, position_vertex);
 }
 
 Material default_obj_material() {
@@ -174,6 +192,7 @@ Scene load_obj_scene(const std::string& path, LoadReport* report, const ObjLoadO
   Node root;
   root.name = fs::path(path).filename().string();
 
+  std::vector<std::uint32_t> position_vertex;
   for (std::size_t s = 0; s + 1 < obj.shape_starts.size(); ++s) {
     // One model per material of the shape, in order of first use within it.
     std::vector<int> order;
@@ -203,7 +222,8 @@ Scene load_obj_scene(const std::string& path, LoadReport* report, const ObjLoadO
         }
         material = *default_material;
       }
-      root.models.push_back({std::make_shared<const TriangleMesh>(build_mesh(obj, groups[id])), material});
+      root.models.push_back(
+          {std::make_shared<const TriangleMesh>(build_mesh(obj, groups[id], position_vertex)), material});
     }
   }
   if (scene.materials.empty()) scene.materials.push_back(default_obj_material());
