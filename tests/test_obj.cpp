@@ -10,6 +10,7 @@
 #include <cstring>
 #include <filesystem>
 #include <numbers>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -730,4 +731,63 @@ TEST_CASE("OBJ parser: every OBJ of the shared corpus parses the same in chunks 
     check_same_scene(chunked, chunked_report, one, one_report);
   }
   CHECK(files >= 8);
+}
+
+namespace {
+
+// compute_vertex_normals as it was before it went parallel: one serial loop.
+void serial_vertex_normals(rt::TriangleMesh& mesh) {
+  std::vector<rt::Vec3d> sums(mesh.positions.size(), rt::Vec3d(0.0));
+  for (const rt::Vec3u& tri : mesh.triangles) {
+    const rt::Vec3d p[3] = {rt::Vec3d(mesh.positions[tri[0]]), rt::Vec3d(mesh.positions[tri[1]]),
+                            rt::Vec3d(mesh.positions[tri[2]])};
+    const rt::Vec3d face = glm::cross(p[1] - p[0], p[2] - p[0]);
+    const double length = glm::length(face);
+    if (!(length > 0.0)) continue;
+    for (int k = 0; k < 3; ++k) {
+      const rt::Vec3d e1 = p[(k + 1) % 3] - p[k], e2 = p[(k + 2) % 3] - p[k];
+      const double l1 = glm::length(e1), l2 = glm::length(e2);
+      if (!(l1 > 0.0 && l2 > 0.0)) continue;
+      const double angle = std::acos(std::clamp(glm::dot(e1, e2) / (l1 * l2), -1.0, 1.0));
+      sums[tri[k]] += angle * (face / length);
+    }
+  }
+  mesh.normals.resize(mesh.positions.size());
+  for (std::size_t i = 0; i < sums.size(); ++i) {
+    const double length = glm::length(sums[i]);
+    mesh.normals[i] = length > 0.0 ? rt::Vec3f(sums[i] / length) : rt::Vec3f(0.0f, 0.0f, 1.0f);
+  }
+}
+
+}  // namespace
+
+TEST_CASE("compute_vertex_normals gives the serial loop's normals bit for bit", "[obj]") {
+  // Random triangles over few vertices, each also present with the opposite winding, later and in
+  // shuffled order: a vertex's contributions cancel up to rounding, so its normal is the direction
+  // of the rounding residue, and any change in the order of summation shows. Degenerate triangles
+  // (repeated corners, coincident positions) too; 80000 triangles make several blocks.
+  std::mt19937_64 rng(20261124);
+  std::uniform_real_distribution<float> coordinate(-1.0f, 1.0f);
+  std::uniform_int_distribution<std::uint32_t> vertex(0, 999);
+  rt::TriangleMesh mesh;
+  for (int i = 0; i < 1000; ++i) mesh.positions.emplace_back(coordinate(rng), coordinate(rng), coordinate(rng));
+  mesh.positions[7] = mesh.positions[3];  // coincident positions: zero-length edges
+  for (int t = 0; t < 40000; ++t) mesh.triangles.emplace_back(vertex(rng), vertex(rng), vertex(rng));
+  mesh.triangles[10] = rt::Vec3u(5, 5, 6);
+  mesh.triangles[11] = rt::Vec3u(3, 7, 8);
+  std::vector<rt::Vec3u> reversed;
+  for (const rt::Vec3u& t : mesh.triangles) reversed.emplace_back(t.x, t.z, t.y);
+  std::shuffle(reversed.begin(), reversed.end(), rng);
+  mesh.triangles.insert(mesh.triangles.end(), reversed.begin(), reversed.end());
+  mesh.positions.emplace_back(0.0f, 0.0f, 0.0f);  // used by no triangle: (0, 0, 1)
+  rt::TriangleMesh expected = mesh;
+  serial_vertex_normals(expected);
+  rt::compute_vertex_normals(mesh);
+  REQUIRE(mesh.normals.size() == expected.normals.size());
+  CHECK(std::memcmp(mesh.normals.data(), expected.normals.data(), mesh.normals.size() * sizeof(rt::Vec3f)) == 0);
+  CHECK(mesh.normals.back() == rt::Vec3f(0, 0, 1));
+  // The residues are not all zero (else the check above would show nothing about the order).
+  std::size_t residues = 0;
+  for (std::size_t i = 0; i + 1 < mesh.normals.size(); ++i) residues += mesh.normals[i] != rt::Vec3f(0, 0, 1);
+  CHECK(residues > 100);
 }
