@@ -64,7 +64,7 @@ TriangleMesh build_mesh(const ObjFile& obj, const FaceRuns& runs, std::vector<st
   std::size_t triangle_count = 0;
   for (const auto& [first, end] : runs)
     for_each_face(obj, first, end, [&](const ObjCorner* corners, std::size_t n) {
-      for (std::size_t k = 0; k < n; ++k) {
+      for (std::size_t k = 0; k < n && (use_texcoords || use_normals); ++k) {
         const ObjCorner& corner = corners[k];
         if (corner.texcoord < 0 || static_cast<std::size_t>(corner.texcoord) >= texcoord_count) use_texcoords = false;
         if (corner.normal < 0 || !obj.normal_usable[static_cast<std::size_t>(corner.normal)]) use_normals = false;
@@ -73,6 +73,8 @@ TriangleMesh build_mesh(const ObjFile& obj, const FaceRuns& runs, std::vector<st
     });
 
   TriangleMesh mesh;
+  mesh.triangles.reserve(triangle_count);
+  mesh.positions.reserve(std::min(obj.position_count(), 3 * triangle_count));
   auto add_vertex = [&](const ObjCorner& corner) {
     const auto v = static_cast<std::size_t>(corner.position);
     mesh.positions.push_back(Vec3f(obj.positions[3 * v], obj.positions[3 * v + 1], obj.positions[3 * v + 2]));
@@ -88,8 +90,6 @@ TriangleMesh build_mesh(const ObjFile& obj, const FaceRuns& runs, std::vector<st
     return static_cast<std::uint32_t>(mesh.positions.size() - 1);
   };
   auto add_triangles = [&](auto&& vertex_for) {
-    mesh.triangles.reserve(triangle_count);
-    mesh.positions.reserve(std::min(obj.position_count(), 3 * triangle_count));
     for (const auto& [first, end] : runs)
       for_each_face(obj, first, end, [&](const ObjCorner* corners, std::size_t n) {
         triangulate_face(obj, corners, n, [&](std::size_t a, std::size_t b, std::size_t c) {
@@ -100,15 +100,17 @@ TriangleMesh build_mesh(const ObjFile& obj, const FaceRuns& runs, std::vector<st
   if (!use_normals && !use_texcoords) {
     // The key is the position index: a table of the file's positions instead of a hash map.
     if (position_vertex.empty()) position_vertex.assign(obj.position_count(), kUnassigned);
+    std::vector<std::int32_t> used;  // the positions given a vertex, to reset their entries after
+    used.reserve(mesh.positions.capacity());
     add_triangles([&](const ObjCorner& corner) {
       std::uint32_t& vertex = position_vertex[static_cast<std::size_t>(corner.position)];
-      if (vertex == kUnassigned) vertex = add_vertex(corner);
+      if (vertex == kUnassigned) {
+        vertex = add_vertex(corner);
+        used.push_back(corner.position);
+      }
       return vertex;
     });
-    for (const auto& [first, end] : runs)
-      for_each_face(obj, first, end, [&](const ObjCorner* corners, std::size_t n) {
-        for (std::size_t k = 0; k < n; ++k) position_vertex[static_cast<std::size_t>(corners[k].position)] = kUnassigned;
-      });
+    for (std::int32_t position : used) position_vertex[static_cast<std::size_t>(position)] = kUnassigned;
   } else {
     std::unordered_map<std::uint64_t, std::uint32_t> vertex_of_key;
     vertex_of_key.reserve(triangle_count);
