@@ -7,8 +7,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <numbers>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -199,11 +201,6 @@ TEST_CASE("OBJ scene: malformed files give one error naming the file and the lin
     std::string reason;
   };
   const std::string tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
-  std::string long_face = "v 0 0 0\n";
-  for (int i = 0; i < 300; ++i) long_face += fmt::format("v {} 1 0\n", i);
-  long_face += "f 1 2 3\nf";
-  for (int i = 1; i <= 300; ++i) long_face += fmt::format(" {}", i);
-  long_face += "\n";
   const std::vector<Case> cases = {
       {"vertex index beyond the vertices", tri + "f 1 2 3\n# comment\nf 1 2 4\n", "bad.obj:6:", "vertex index 4 out of range"},
       {"index 0", tri + "f 0 1 2\n", "bad.obj:4:", "indices start at 1"},
@@ -211,7 +208,15 @@ TEST_CASE("OBJ scene: malformed files give one error naming the file and the lin
       {"relative index before the first vertex", tri + "f -1 -2 -4\n", "bad.obj:4:", "relative index"},
       {"normal index beyond the normals", tri + "vn 0 0 1\nf 1//1 2//1 3//2\n", "bad.obj:5:", "normal index 2 out of range"},
       {"index error after a polygon", tri + "v 1 1 0\nf 1 2 4 3\nf 1 2\nf 1 2 9\n", "bad.obj:7:", "vertex index 9"},
-      {"face of 300 vertices", long_face, "bad.obj:303:", "more than 255 vertices"},
+      {"normal index before the first normal", tri + "vn 0 0 1\nf 1//-1 2//-3 3//-1\n", "bad.obj:5:",
+       "normal index out of range: a relative index points before the first normal"},
+      // tinyobjloader's own messages, kept word for word.
+      {"line with index 0", tri + "l 1 0\nf 1 2 3\n", "bad.obj:4:",
+       "Failed parse `l' line(e.g. zero value for vertex index. line 4.)"},
+      {"points with a non-number", tri + "p x\nf 1 2 3\n", "bad.obj:4:",
+       "Failed parse `p' line(e.g. zero value for vertex index. line 4.)"},
+      {"skin weight with a negative joint", tri + "vw 1 -2 0.5\nf 1 2 3\n", "bad.obj:4:",
+       "Failed parse `vw' line. joint_id is negative. line 4.)"},
   };
   for (const Case& c : cases) {
     DYNAMIC_SECTION(c.name) {
@@ -428,4 +433,361 @@ TEST_CASE("OBJ scene: map_Kd is sampled at the vt coordinates, v = 1 at the imag
   REQUIRE(sampler.has_diffuse(0));
   CHECK(sampler.diffuse(0, {0.5f, 0.25f}) == rt::Color(1, 0, 0));
   CHECK(sampler.diffuse(0, {0.5f, 0.75f}) == rt::Color(0, 1, 0));
+}
+
+namespace {
+
+// Two materials for kFeatureObj.
+const char* const kFeatureMtl = "newmtl red\nKd 1 0 0\nnewmtl blue\nKd 0 0 1\n";
+
+// Most of what the OBJ parser handles, in few lines: groups, objects and usemtl switching (the
+// material carries over into the next group), relative and absolute indices of every form, a quad
+// and a pentagon, colours after a position, a 1-component vt, comments (also after numbers), tabs,
+// statements that are ignored ("g" without a name among them), a face of two vertices (dropped)
+// and an unknown material.
+const char* const kFeatureObj = R"(# features
+mtllib feature.mtl
+v 0 0 0
+v 1 0 0 0.5 0.5 0.5
+v	1	1	0
+v 0 1 0 # a comment after the numbers
+vt 0 0
+vt 1
+vt 1 1
+vt 0 1
+vn 0 0 1
+g front
+usemtl red
+f 1/1/1 2/2/1 3/3/1 4/4/1
+usemtl blue
+f -4/-4/-1 -2/-2/-1 -1/-1/-1
+v 0 0 1
+v 1 0 1
+v 1 1 1
+o back
+f -3 -2 -1
+usemtl nothere
+f 5 6 7
+s 1
+l 1 2
+p 3
+f 1 2
+bogus statement
+g
+g last
+usemtl red
+f 1//1 2//1 6//1 7//1 3//1
+f -7/1 -6/2 -5/3
+)";
+
+std::vector<std::string> model_material_names(const rt::Scene& scene) {
+  std::vector<std::string> names;
+  for (const rt::Model& model : scene.nodes[scene.root].models) names.push_back(scene.materials[model.material].name);
+  return names;
+}
+
+template <class T>
+bool same_bits(const std::vector<T>& a, const std::vector<T>& b) {
+  return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
+}
+
+bool same_mesh(const rt::TriangleMesh& a, const rt::TriangleMesh& b) {
+  return same_bits(a.positions, b.positions) && same_bits(a.normals, b.normals) &&
+         same_bits(a.texcoords, b.texcoords) && same_bits(a.triangles, b.triangles);
+}
+
+// The models of two loads: the same meshes bit for bit, the same materials, the same warnings.
+void check_same_scene(const rt::Scene& a, const rt::LoadReport& report_a, const rt::Scene& b,
+                      const rt::LoadReport& report_b) {
+  const auto& models_a = a.nodes[a.root].models;
+  const auto& models_b = b.nodes[b.root].models;
+  REQUIRE(models_a.size() == models_b.size());
+  for (std::size_t m = 0; m < models_a.size(); ++m) {
+    INFO("model " << m);
+    CHECK(models_a[m].material == models_b[m].material);
+    CHECK(same_mesh(*models_a[m].mesh, *models_b[m].mesh));
+  }
+  CHECK(model_material_names(a) == model_material_names(b));
+  CHECK(report_a.warnings == report_b.warnings);
+}
+
+// The message of the InputError that loading `path` throws (empty if none).
+std::string load_error(const std::string& path, const rt::ObjLoadOptions& options = {}) {
+  try {
+    rt::load_obj_scene(path, nullptr, options);
+  } catch (const rt::InputError& error) {
+    return error.what();
+  }
+  return "";
+}
+
+std::string replace_all(std::string text, const std::string& from, const std::string& to) {
+  for (std::size_t at = text.find(from); at != std::string::npos; at = text.find(from, at + to.size()))
+    text.replace(at, from.size(), to);
+  return text;
+}
+
+}  // namespace
+
+TEST_CASE("OBJ parser: what the features file gives", "[obj]") {
+  rt_test::TempDir dir;
+  write_file(dir.path() / "feature.mtl", kFeatureMtl);
+  write_file(dir.path() / "feature.obj", kFeatureObj);
+  rt::LoadReport report;
+  const rt::Scene scene = rt::load_obj_scene(dir / "feature.obj", &report);
+  // Shapes: "front" (red quad, blue triangle), "back" (a blue triangle, the material still in
+  // force, then one of the unknown material: the default), "last" (red pentagon and triangle).
+  // Faces of fewer than three vertices, l and p are dropped.
+  CHECK(model_material_names(scene) == std::vector<std::string>{"red", "blue", "blue", "(default)", "red"});
+  const auto& models = scene.nodes[scene.root].models;
+  REQUIRE(models.size() == 5);
+  const rt::TriangleMesh& quad = *models[0].mesh;
+  CHECK(quad.triangles.size() == 2);
+  REQUIRE(quad.texcoords.size() == 4);
+  CHECK(quad.texcoords[1] == rt::Vec2f(1, 1));     // "vt 1": v = 0, stored as 1 - v
+  CHECK(quad.positions[1] == rt::Vec3f(1, 0, 0));  // the colour after x y z is not a coordinate
+  CHECK(quad.normals[0] == rt::Vec3f(0, 0, 1));
+  const rt::TriangleMesh& relative = *models[1].mesh;  // f -4/-4/-1 -2/-2/-1 -1/-1/-1
+  CHECK(relative.positions == std::vector<rt::Vec3f>{{0, 0, 0}, {1, 1, 0}, {0, 1, 0}});
+  CHECK(relative.texcoords == std::vector<rt::Vec2f>{{0, 1}, {1, 0}, {0, 0}});
+  const std::vector<rt::Vec3f> back{{0, 0, 1}, {1, 0, 1}, {1, 1, 1}};
+  CHECK(models[2].mesh->positions == back);  // f -3 -2 -1 after three more v
+  CHECK(models[3].mesh->positions == back);  // f 5 6 7
+  const rt::TriangleMesh& last = *models[4].mesh;
+  CHECK(last.triangles.size() == 3 + 1);  // the pentagon as a fan, then f -7/1 -6/2 -5/3 (v 1 2 3)
+  CHECK(last.texcoords.empty());          // the pentagon has no vt
+  CHECK(last.normals.size() == last.positions.size());
+  REQUIRE(report.warnings.size() == 1);
+  CHECK_THAT(report.warnings[0], Catch::Contains("1 material(s) not defined") && Catch::Contains("'nothere'"));
+}
+
+TEST_CASE("OBJ parser: chunk boundaries at every line give the same scene as one chunk", "[obj]") {
+  rt_test::TempDir dir;
+  write_file(dir.path() / "feature.mtl", kFeatureMtl);
+  // CRLF, no final newline, and a byte order mark must not change anything either.
+  const std::string lf = kFeatureObj;
+  const std::vector<std::pair<std::string, std::string>> variants = {
+      {"LF", lf},
+      {"CRLF", replace_all(lf, "\n", "\r\n")},
+      {"no final newline", lf.substr(0, lf.size() - 1)},
+      {"byte order mark", "\xEF\xBB\xBF" + lf},
+      {"CRLF, no final newline, byte order mark",
+       "\xEF\xBB\xBF" + replace_all(lf.substr(0, lf.size() - 1), "\n", "\r\n")},
+  };
+  rt::LoadReport reference_report;
+  write_file(dir.path() / "feature.obj", lf);
+  const rt::Scene reference = rt::load_obj_scene(dir / "feature.obj", &reference_report, {1 << 30});
+  REQUIRE(model_count(reference) == 5);
+  for (const auto& [name, text] : variants) {
+    DYNAMIC_SECTION(name) {
+      write_file(dir.path() / "feature.obj", text);
+      // chunk_bytes 1 puts a boundary after every line; every other size shifts them around.
+      for (std::size_t chunk_bytes = 1; chunk_bytes <= text.size(); ++chunk_bytes) {
+        INFO("chunk_bytes " << chunk_bytes);
+        rt::LoadReport report;
+        const rt::Scene scene = rt::load_obj_scene(dir / "feature.obj", &report, {chunk_bytes});
+        check_same_scene(scene, report, reference, reference_report);
+      }
+    }
+  }
+}
+
+TEST_CASE("OBJ parser: relative indices reach back across many chunks", "[obj]") {
+  // A strip of 50 quads over 51 columns of two vertices and a normal each, every face naming its
+  // corners and its column's normal relative to the end of the vertices: with a chunk per line,
+  // every face refers to vertices of earlier chunks.
+  rt_test::TempDir dir;
+  std::string text;
+  for (int i = 0; i <= 50; ++i) text += fmt::format("v {0} 0 0\nv {0} 1 0\nvn 0 {0} 1\n", i);
+  for (int i = 0; i < 50; ++i) {
+    const int back = 100 - 2 * i;  // -back is the bottom vertex of column i + 1
+    text += fmt::format("f -{0}//-{4} -{1}//-{4} -{2}//-{4} -{3}//-{4}\n", back + 2, back, back - 1, back + 1, 51 - i);
+  }
+  write_file(dir.path() / "strip.obj", text);
+  const rt::Scene one = rt::load_obj_scene(dir / "strip.obj", nullptr, {1 << 30});
+  const rt::Scene many = rt::load_obj_scene(dir / "strip.obj", nullptr, {1});
+  REQUIRE(model_count(one) == 1);
+  REQUIRE(model_count(many) == 1);
+  const rt::TriangleMesh& mesh = *many.nodes[many.root].models[0].mesh;
+  CHECK(same_mesh(mesh, *one.nodes[one.root].models[0].mesh));
+  REQUIRE(mesh.triangles.size() == 100);
+  CHECK(mesh.positions.size() == 200);  // each quad's corners carry its own normal
+  for (std::size_t t = 0; t < 100; ++t) {
+    const float column = float(t / 2);
+    const rt::Vec3f normal(glm::normalize(rt::Vec3d(0.0, column, 1.0)));
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t v = mesh.triangles[t][k];
+      INFO("triangle " << t << " corner " << k);
+      CHECK((mesh.positions[v].x == column || mesh.positions[v].x == column + 1));
+      CHECK(mesh.normals[v] == normal);
+    }
+  }
+  // A relative index before the first vertex, in a late chunk, names its line.
+  write_file(dir.path() / "strip.obj", text + "f -1 -2 -103\n");
+  CHECK_THAT(load_error(dir / "strip.obj", {1}),
+             Catch::Contains("strip.obj:204: vertex index out of range: a relative index points before the first "
+                             "vertex"));
+}
+
+TEST_CASE("OBJ parser: errors in late chunks name their line; the number check comes first", "[obj]") {
+  rt_test::TempDir dir;
+  std::string head;
+  for (int i = 0; i < 300; ++i) head += fmt::format("v {} {} 0\n", i % 17, i % 5);  // lines 1-300
+  for (int i = 1; i + 2 <= 300; ++i) head += fmt::format("f {} {} {}\n", i, i + 1, i + 2);  // lines 301-598
+  const std::string path = dir / "late.obj";
+  struct Case {
+    const char* name;
+    std::string text;
+    std::string message;
+  };
+  const std::vector<Case> cases = {
+      {"index out of range", head + "f 1 2 301\n",
+       "late.obj:599: vertex index 301 out of range (300 vertices defined)"},
+      {"index 0", head + "f 1 0 2\n", "late.obj:599: bad face: a vertex index is 0"},
+      {"not a number", head + "vn 0 1 abc\n", "late.obj:599: 'vn': 'abc' is not a number"},
+      {"not finite", head + "vt 0 inf\n", "late.obj:599: 'vt': 'inf' is not finite"},
+      {"binary", head + "v 0 0 \x01\n", "late.obj:599: binary data (byte 0x01): not a text file"},
+      // The number check read the whole file before tinyobj parsed it: a bad number late wins over
+      // a bad face early, and over a face index out of range.
+      {"number check first", "v 0 0 0\nf 0 1 2\n" + head + "v nan 0 0\n", "late.obj:601: 'v': 'nan' is not finite"},
+      {"bad face before range errors", "f 999 999 999\n" + head + "f 0 1 2\n", "late.obj:600: bad face"},
+      // Lines count as the old loader counted them: CRLF is one break; for a parse error tinyobj
+      // also counted a lone CR.
+      {"CRLF", replace_all(head, "\n", "\r\n") + "f 1 2 301\r\n", "late.obj:599: vertex index 301 out of range"},
+      {"lone CR before a bad face", head + "# a\rb\nf 1 0 2\n", "late.obj:601: bad face"},
+      {"lone CR before a bad number", head + "# a\rb\nv 1 0 x\n", "late.obj:600: 'v': 'x' is not a number"},
+  };
+  for (const Case& c : cases) {
+    DYNAMIC_SECTION(c.name) {
+      write_file(path, c.text);
+      for (std::size_t chunk_bytes : {std::size_t(1), std::size_t(100), std::size_t(4096), std::size_t(1) << 30}) {
+        INFO("chunk_bytes " << chunk_bytes);
+        CHECK_THAT(load_error(path, {chunk_bytes}), Catch::Contains(c.message));
+      }
+    }
+  }
+}
+
+TEST_CASE("OBJ parser: an MTL error comes at its mtllib line, before later bad faces, after earlier ones", "[obj]") {
+  rt_test::TempDir dir;
+  write_file(dir.path() / "bad.mtl", "newmtl x\nKd 0 nan 0\n");
+  const std::string tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+  write_file(dir.path() / "mtl_first.obj", tri + "mtllib bad.mtl\nf 1 2 0\n");
+  write_file(dir.path() / "face_first.obj", tri + "f 1 2 0\nmtllib bad.mtl\n");
+  for (std::size_t chunk_bytes : {std::size_t(1), std::size_t(1) << 30}) {
+    INFO("chunk_bytes " << chunk_bytes);
+    CHECK_THAT(load_error(dir / "mtl_first.obj", {chunk_bytes}),
+               Catch::Contains("bad.mtl:2: 'Kd': 'nan' is not finite"));
+    CHECK_THAT(load_error(dir / "face_first.obj", {chunk_bytes}), Catch::Contains("face_first.obj:4: bad face"));
+  }
+}
+
+TEST_CASE("OBJ parser: numbers are rounded once, to float32", "[obj]") {
+  // 1 + 2^-24 + 2^-60: rounded to double first it would land on 1 + 2^-24, halfway between two
+  // floats, and then round to 1. Read straight into float it is above the halfway point.
+  rt_test::TempDir dir;
+  write_file(dir.path() / "n.obj", "v 1.000000059604644776257 0.1 -2.5e-3\nv 1e-50 -7.5e+2 +4\nv 0 1 0\nf 1 2 3\n");
+  const rt::TriangleMesh mesh = rt::load_obj_mesh(dir / "n.obj");
+  REQUIRE(mesh.positions.size() == 3);
+  CHECK(mesh.positions[0].x == std::nextafter(1.0f, 2.0f));
+  CHECK(mesh.positions[0].y == 0.1f);
+  CHECK(mesh.positions[0].z == -2.5e-3f);
+  CHECK(mesh.positions[1] == rt::Vec3f(0.0f, -750.0f, 4.0f));  // 1e-50 underflows to 0
+  // Beyond float's range a coordinate is infinite, and beyond the world's limit.
+  write_file(dir.path() / "n.obj", "v 0 0 0\nv 1 0 0\nv 0 1e39 0\nf 1 2 3\n");
+  CHECK_THAT(load_error(dir / "n.obj"), Catch::Contains("vertex 3 has a coordinate inf, beyond +-1e+17"));
+}
+
+TEST_CASE("OBJ parser: a face of 300 vertices is a fan of 298 triangles", "[obj]") {
+  // tinyobjloader kept a face's vertex count in a byte; the parser here has no such limit.
+  rt_test::TempDir dir;
+  std::string text;
+  for (int i = 0; i < 300; ++i) text += fmt::format("v {} {} 0\n", std::cos(i * 0.02), std::sin(i * 0.02));
+  text += "f";
+  for (int i = 1; i <= 300; ++i) text += fmt::format(" {}", i);
+  text += "\n";
+  write_file(dir.path() / "fan.obj", text);
+  const rt::TriangleMesh mesh = rt::load_obj_mesh(dir / "fan.obj");
+  REQUIRE(mesh.triangles.size() == 298);
+  CHECK(mesh.positions.size() == 300);
+  for (std::size_t k = 0; k < 298; ++k) CHECK(mesh.triangles[k] == rt::Vec3u(0, k + 1, k + 2));
+}
+
+TEST_CASE("OBJ parser: every OBJ of the shared corpus parses the same in chunks as in one", "[obj]") {
+  const fs::path root = fs::path(RT_SHARED_DATA_DIR) / "data" / "models" / "obj";
+  std::error_code error;
+  if (!fs::is_directory(root, error)) {
+    WARN("shared models not found at " << root.string() << " (RT_SHARED_DATA_DIR): skipping");
+    return;
+  }
+  std::size_t files = 0;
+  for (const auto& entry : fs::recursive_directory_iterator(root)) {
+    if (entry.path().extension() != ".obj") continue;
+    ++files;
+    INFO(entry.path().string());
+    rt::LoadReport one_report, chunked_report;
+    const rt::Scene one = rt::load_obj_scene(entry.path().string(), &one_report, {std::size_t(1) << 40});
+    const rt::Scene chunked = rt::load_obj_scene(entry.path().string(), &chunked_report, {4096});
+    check_same_scene(chunked, chunked_report, one, one_report);
+  }
+  CHECK(files >= 8);
+}
+
+namespace {
+
+// compute_vertex_normals as it was before it went parallel: one serial loop.
+void serial_vertex_normals(rt::TriangleMesh& mesh) {
+  std::vector<rt::Vec3d> sums(mesh.positions.size(), rt::Vec3d(0.0));
+  for (const rt::Vec3u& tri : mesh.triangles) {
+    const rt::Vec3d p[3] = {rt::Vec3d(mesh.positions[tri[0]]), rt::Vec3d(mesh.positions[tri[1]]),
+                            rt::Vec3d(mesh.positions[tri[2]])};
+    const rt::Vec3d face = glm::cross(p[1] - p[0], p[2] - p[0]);
+    const double length = glm::length(face);
+    if (!(length > 0.0)) continue;
+    for (int k = 0; k < 3; ++k) {
+      const rt::Vec3d e1 = p[(k + 1) % 3] - p[k], e2 = p[(k + 2) % 3] - p[k];
+      const double l1 = glm::length(e1), l2 = glm::length(e2);
+      if (!(l1 > 0.0 && l2 > 0.0)) continue;
+      const double angle = std::acos(std::clamp(glm::dot(e1, e2) / (l1 * l2), -1.0, 1.0));
+      sums[tri[k]] += angle * (face / length);
+    }
+  }
+  mesh.normals.resize(mesh.positions.size());
+  for (std::size_t i = 0; i < sums.size(); ++i) {
+    const double length = glm::length(sums[i]);
+    mesh.normals[i] = length > 0.0 ? rt::Vec3f(sums[i] / length) : rt::Vec3f(0.0f, 0.0f, 1.0f);
+  }
+}
+
+}  // namespace
+
+TEST_CASE("compute_vertex_normals gives the serial loop's normals bit for bit", "[obj]") {
+  // Random triangles over few vertices, each also present with the opposite winding, later and in
+  // shuffled order: a vertex's contributions cancel up to rounding, so its normal is the direction
+  // of the rounding residue, and any change in the order of summation shows. Degenerate triangles
+  // (repeated corners, coincident positions) too; 80000 triangles make several blocks.
+  std::mt19937_64 rng(20261124);
+  std::uniform_real_distribution<float> coordinate(-1.0f, 1.0f);
+  std::uniform_int_distribution<std::uint32_t> vertex(0, 999);
+  rt::TriangleMesh mesh;
+  for (int i = 0; i < 1000; ++i) mesh.positions.emplace_back(coordinate(rng), coordinate(rng), coordinate(rng));
+  mesh.positions[7] = mesh.positions[3];  // coincident positions: zero-length edges
+  for (int t = 0; t < 40000; ++t) mesh.triangles.emplace_back(vertex(rng), vertex(rng), vertex(rng));
+  mesh.triangles[10] = rt::Vec3u(5, 5, 6);
+  mesh.triangles[11] = rt::Vec3u(3, 7, 8);
+  std::vector<rt::Vec3u> reversed;
+  for (const rt::Vec3u& t : mesh.triangles) reversed.emplace_back(t.x, t.z, t.y);
+  std::shuffle(reversed.begin(), reversed.end(), rng);
+  mesh.triangles.insert(mesh.triangles.end(), reversed.begin(), reversed.end());
+  mesh.positions.emplace_back(0.0f, 0.0f, 0.0f);  // used by no triangle: (0, 0, 1)
+  rt::TriangleMesh expected = mesh;
+  serial_vertex_normals(expected);
+  rt::compute_vertex_normals(mesh);
+  REQUIRE(mesh.normals.size() == expected.normals.size());
+  CHECK(std::memcmp(mesh.normals.data(), expected.normals.data(), mesh.normals.size() * sizeof(rt::Vec3f)) == 0);
+  CHECK(mesh.normals.back() == rt::Vec3f(0, 0, 1));
+  // The residues are not all zero (else the check above would show nothing about the order).
+  std::size_t residues = 0;
+  for (std::size_t i = 0; i + 1 < mesh.normals.size(); ++i) residues += mesh.normals[i] != rt::Vec3f(0, 0, 1);
+  CHECK(residues > 100);
 }

@@ -2,17 +2,17 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
+#include <cstdint>
 #include <filesystem>
-#include <fstream>
 #include <map>
-#include <set>
-#include <sstream>
+#include <memory>
+#include <optional>
 #include <unordered_map>
 
 #include <fmt/format.h>
 #include <tiny_obj_loader.h>
 
+#include "obj_parser.h"
 #include "rt/core/error.h"
 #include "rt/render/texture.h"
 #include "rt/scene/framing.h"
@@ -24,271 +24,105 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// tinyobjloader reads a number it cannot parse ("nan", "1e999", "abc") as 0 and carries on, and
-// skips lines it does not know, binary garbage included. So before tinyobj sees a file, every
-// statement below has its numbers checked here, and a control character (other than tab, CR and
-// form feed) anywhere marks the file as binary. Errors name the 1-based line.
-const std::set<std::string> kObjNumericKeywords{"v", "vn", "vt"};
-const std::set<std::string> kMtlNumericKeywords{"Ka", "Kd", "Ks", "Ke", "Tf", "Ns", "Ni", "d", "Tr", "illum"};
+// Runs of consecutive faces, [first, end) each: the faces of one model, in file order.
+using FaceRuns = std::vector<std::pair<std::size_t, std::size_t>>;
 
-void check_numbers(const std::string& path, std::istream& in, const std::set<std::string>& keywords) {
-  std::string line;
-  std::size_t number = 0;
-  while (std::getline(in, line)) {
-    ++number;
-    if (number == 1 && line.starts_with("\xEF\xBB\xBF")) line.erase(0, 3);  // UTF-8 byte order mark
-    for (unsigned char c : line)
-      if (c < 0x20 && c != '\t' && c != '\r' && c != '\f')
-        throw InputError(path, std::to_string(number),
-                         fmt::format("binary data (byte 0x{:02x}): not a text file", static_cast<unsigned>(c)));
-    std::istringstream tokens(line);
-    std::string keyword, token;
-    if (!(tokens >> keyword) || !keywords.contains(keyword)) continue;
-    while (tokens >> token) {
-      if (token.starts_with('#') || token == "spectral") break;  // a comment; a spectral curve file
-      if (token == "xyz" || token == "-halo") continue;          // MTL colour space and dissolve options
-      char* end = nullptr;
-      const double value = std::strtod(token.c_str(), &end);
-      if (end != token.c_str() + token.size())
-        throw InputError(path, std::to_string(number), fmt::format("'{}': '{}' is not a number", keyword, token));
-      if (!std::isfinite(value))
-        throw InputError(path, std::to_string(number), fmt::format("'{}': '{}' is not finite", keyword, token));
-    }
-  }
-}
-
-// Reads MTL libraries named by `mtllib` from the OBJ's directory and remembers those it cannot open.
-class MtlLibraryReader : public tinyobj::MaterialReader {
- public:
-  explicit MtlLibraryReader(fs::path directory) : directory_(std::move(directory)) {}
-
-  bool operator()(const std::string& name, std::vector<tinyobj::material_t>* materials,
-                  std::map<std::string, int>* material_map, std::string* warn, std::string* err) override {
-    const fs::path path = directory_ / name;
-    std::ifstream in(path, std::ios::binary);
-    if (!in) {
-      missing.push_back(name);
-      return false;
-    }
-    check_numbers(path.string(), in, kMtlNumericKeywords);
-    in.clear();
-    in.seekg(0);
-    tinyobj::LoadMtl(material_map, materials, &in, warn, err);
-    return true;
-  }
-
-  std::vector<std::string> missing;
-
- private:
-  fs::path directory_;
-};
-
-// A triangle of OBJ index triples, and the face it came from (0-based, in file order).
-struct ObjTriangle {
-  tinyobj::index_t corners[3];
-  std::size_t face;
-};
-
-struct ObjFile {
-  tinyobj::attrib_t attrib;
-  std::vector<tinyobj::shape_t> shapes;
-  std::vector<tinyobj::material_t> materials;
-  std::vector<std::string> missing_libraries;
-  std::vector<std::string> unknown_materials;  // usemtl names no library defines
-  std::size_t position_count = 0, normal_count = 0;
-};
-
-// 1-based line of the first `f` line with at least `min_vertices` vertices that comes after
-// `skip` such lines (tinyobj keeps the faces of three or more vertices, in file order). 0 if none.
-std::size_t find_face_line(const std::string& path, std::size_t skip, std::size_t min_vertices) {
-  std::ifstream in(path, std::ios::binary);
-  std::string line;
-  std::size_t number = 0, seen = 0;
-  while (std::getline(in, line)) {
-    ++number;
-    const std::size_t start = line.find_first_not_of(" \t");
-    if (start == std::string::npos || line[start] != 'f' || start + 1 >= line.size() ||
-        (line[start + 1] != ' ' && line[start + 1] != '\t'))
-      continue;
-    std::istringstream tokens(line.substr(start + 1));
-    std::string token;
-    std::size_t vertices = 0;
-    while (tokens >> token) ++vertices;
-    if (vertices >= min_vertices && seen++ == skip) return number;
-  }
-  return 0;
-}
-
-[[noreturn]] void fail_at_line(const std::string& path, std::size_t line, const std::string& reason) {
-  throw InputError(path, line > 0 ? std::to_string(line) : "", reason);
-}
-
-// `face` counts from 0 over the faces tinyobj keeps.
-[[noreturn]] void fail_at_face(const std::string& path, std::size_t face, const std::string& reason) {
-  fail_at_line(path, find_face_line(path, face, 3), reason);
-}
-
-// tinyobj stores the vertex count of a face in a byte: more than 255 vertices wrap around.
-[[noreturn]] void fail_long_face(const std::string& path) {
-  fail_at_line(path, find_face_line(path, 0, 256), "a face has more than 255 vertices (not supported)");
-}
-
-// tinyobj reports a parse failure as text such as "Failed parse `f' line(e.g. zero value for face
-// index. line 12.)"; keep the line number apart and say what is wrong in plain words.
-[[noreturn]] void fail_parse(const std::string& path, const std::string& message) {
-  const std::string text = message.substr(0, message.find('\n'));
-  std::string line;  // the digits after the first "line N" or "line: N"
-  for (std::size_t at = text.find("line"); at != std::string::npos && line.empty(); at = text.find("line", at + 1)) {
-    std::size_t pos = at + 4;
-    if (pos < text.size() && text[pos] == ':') ++pos;
-    if (pos < text.size() && text[pos] == ' ') line = read_digits(text, ++pos);
-  }
-  std::string reason = text.empty() ? "cannot parse OBJ" : text;
-  if (text.find("`f' line") != std::string::npos)
-    reason = "bad face: a vertex index is 0 or not a number (OBJ indices start at 1)";
-  throw InputError(path, line, reason);
-}
-
-ObjFile read_obj(const std::string& path) {
-  if (!fs::is_regular_file(path)) throw InputError(path, "", "no such file");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path, "", "cannot open file");
-  check_numbers(path, in, kObjNumericKeywords);
-  in.clear();
-  in.seekg(0);
-  ObjFile obj;
-  MtlLibraryReader mtl_reader(fs::path(path).parent_path());
-  std::string warn, err;
-  // Triangulated here, not by tinyobj, which reads vertex positions before indices are checked.
-  if (!tinyobj::LoadObj(&obj.attrib, &obj.shapes, &obj.materials, &warn, &err, &in, &mtl_reader,
-                        /*triangulate=*/false, /*default_vcols_fallback=*/false))
-    fail_parse(path, err);
-  obj.missing_libraries = mtl_reader.missing;
-  std::set<std::string> unknown;
-  std::istringstream warnings(warn);
-  const std::string before = "material [ '", after = "' ] not found in .mtl";
-  for (std::string w; std::getline(warnings, w);) {
-    const std::size_t start = w.find(before), end = w.rfind(after);
-    if (start == std::string::npos || end == std::string::npos || end < start + before.size()) continue;
-    std::string name = w.substr(start + before.size(), end - start - before.size());
-    if (unknown.insert(name).second) obj.unknown_materials.push_back(std::move(name));
-  }
-  obj.position_count = obj.attrib.vertices.size() / 3;
-  obj.normal_count = obj.attrib.normals.size() / 3;
-  // OBJ positions are world space; checked before a camera is framed on them (rt/scene/scene.h).
-  for (std::size_t i = 0; i < obj.attrib.vertices.size(); ++i)
-    if (std::abs(obj.attrib.vertices[i]) > kMaxWorldCoordinate)
-      throw InputError(path, "", fmt::format("vertex {} has a coordinate {:g}, beyond +-{:g}", i / 3 + 1,
-                                             obj.attrib.vertices[i], kMaxWorldCoordinate));
-  if (obj.shapes.empty() || std::all_of(obj.shapes.begin(), obj.shapes.end(), [](const tinyobj::shape_t& shape) {
-        return shape.mesh.num_face_vertices.empty();
-      }))
-    throw InputError(path, "", "no faces ('f' lines): nothing to render");
-  return obj;
-}
-
-// The triangles of every face of `shape`, indices checked; faces are numbered from `first_face`.
-// Triangles pass through; quads are split along the shorter diagonal (as tinyobj does), larger
-// polygons as a fan from their first vertex (exact for convex polygons).
-std::vector<std::pair<ObjTriangle, int>> triangulate_shape(const std::string& path, const ObjFile& obj,
-                                                           const tinyobj::shape_t& shape, std::size_t first_face) {
-  std::vector<std::pair<ObjTriangle, int>> triangles;
-  const auto& indices = shape.mesh.indices;
-  std::size_t total = 0;
-  for (unsigned char n : shape.mesh.num_face_vertices) total += n;
-  if (total != indices.size()) fail_long_face(path);
-  std::size_t offset = 0;
-  for (std::size_t f = 0; f < shape.mesh.num_face_vertices.size(); ++f) {
-    const std::size_t face = first_face + f, n = shape.mesh.num_face_vertices[f];
-    if (n < 3 || offset + n > indices.size()) fail_long_face(path);
-    for (std::size_t k = offset; k < offset + n; ++k) {
-      const tinyobj::index_t& index = indices[k];
-      if (index.vertex_index < 0 || static_cast<std::size_t>(index.vertex_index) >= obj.position_count)
-        fail_at_face(path, face,
-                     index.vertex_index < 0
-                         ? "vertex index out of range: a relative index points before the first vertex"
-                         : fmt::format("vertex index {} out of range ({} vertices defined)", index.vertex_index + 1,
-                                       obj.position_count));
-      if (index.normal_index >= 0 && static_cast<std::size_t>(index.normal_index) >= obj.normal_count)
-        fail_at_face(path, face, fmt::format("normal index {} out of range ({} normals defined)",
-                                             index.normal_index + 1, obj.normal_count));
-      if (index.normal_index < -1)
-        fail_at_face(path, face, "normal index out of range: a relative index points before the first normal");
-    }
-    const int material = f < shape.mesh.material_ids.size() ? shape.mesh.material_ids[f] : -1;
-    auto add = [&](std::size_t a, std::size_t b, std::size_t c) {
-      triangles.push_back({ObjTriangle{{indices[offset + a], indices[offset + b], indices[offset + c]}, face}, material});
+// Calls triangle(a, b, c) with the corners (offsets in `corners`) of each triangle of a face of n
+// corners: a triangle passes through; a quad is split along the shorter diagonal (as tinyobj
+// does), a larger polygon as a fan from its first vertex (exact for convex polygons).
+template <class Triangle>
+void triangulate_face(const ObjFile& obj, const ObjCorner* corners, std::size_t n, Triangle&& triangle) {
+  if (n == 4) {
+    auto position = [&](std::size_t k) {
+      const auto i = static_cast<std::size_t>(corners[k].position);
+      return Vec3d(obj.positions[3 * i], obj.positions[3 * i + 1], obj.positions[3 * i + 2]);
     };
-    if (n == 4) {
-      auto position = [&](std::size_t k) {
-        const auto i = static_cast<std::size_t>(indices[offset + k].vertex_index);
-        return Vec3d(obj.attrib.vertices[3 * i], obj.attrib.vertices[3 * i + 1], obj.attrib.vertices[3 * i + 2]);
-      };
-      const Vec3d d02 = position(2) - position(0), d13 = position(3) - position(1);
-      if (glm::dot(d02, d02) < glm::dot(d13, d13)) {
-        add(0, 1, 2);
-        add(0, 2, 3);
-      } else {
-        add(0, 1, 3);
-        add(1, 2, 3);
-      }
+    const Vec3d d02 = position(2) - position(0), d13 = position(3) - position(1);
+    if (glm::dot(d02, d02) < glm::dot(d13, d13)) {
+      triangle(0, 1, 2);
+      triangle(0, 2, 3);
     } else {
-      for (std::size_t k = 1; k + 1 < n; ++k) add(0, k, k + 1);
+      triangle(0, 1, 3);
+      triangle(1, 2, 3);
     }
-    offset += n;
+  } else {
+    for (std::size_t k = 1; k + 1 < n; ++k) triangle(0, k, k + 1);
   }
-  if (offset != indices.size()) fail_long_face(path);
-  return triangles;
 }
 
-// One mesh from triangles of the file: vertices are renumbered densely. With `vn` on every corner
-// each distinct (position, normal) pair is a vertex; otherwise each position is, and smooth
-// angle-weighted normals are computed. With a valid `vt` on every corner the texture coordinate
-// joins the key, stored as (u, 1 - v): OBJ puts v = 0 at the image's bottom row, OIIO at its top.
-TriangleMesh build_mesh(const ObjFile& obj, const std::vector<ObjTriangle>& triangles) {
-  const std::size_t texcoord_count = obj.attrib.texcoords.size() / 2;
-  bool use_texcoords = texcoord_count > 0;
-  for (const ObjTriangle& t : triangles)
-    for (const tinyobj::index_t& index : t.corners)
-      if (index.texcoord_index < 0 || static_cast<std::size_t>(index.texcoord_index) >= texcoord_count)
-        use_texcoords = false;
-  bool use_normals = obj.normal_count > 0;
-  for (const ObjTriangle& t : triangles)
-    for (const tinyobj::index_t& index : t.corners) {
-      if (index.normal_index < 0) {
-        use_normals = false;
-        continue;
+constexpr std::uint32_t kUnassigned = UINT32_MAX;
+
+// One mesh from faces of the file: vertices are renumbered densely, in order of first use by the
+// triangles. With `vn` on every corner each distinct (position, normal) pair is a vertex;
+// otherwise each position is, and smooth angle-weighted normals are computed. With a valid `vt`
+// on every corner the texture coordinate joins the key, stored as (u, 1 - v): OBJ puts v = 0 at
+// the image's bottom row, OIIO at its top. `position_vertex`: scratch, kUnassigned per position
+// of the file (or empty, then sized here), and left so.
+TriangleMesh build_mesh(const ObjFile& obj, const FaceRuns& runs, std::vector<std::uint32_t>& position_vertex) {
+  const std::size_t texcoord_count = obj.texcoord_count(), normal_count = obj.normal_count();
+  bool use_texcoords = texcoord_count > 0, use_normals = normal_count > 0;
+  std::size_t triangle_count = 0;
+  for (const auto& [first, end] : runs)
+    for_each_face(obj, first, end, [&](const ObjCorner* corners, std::size_t n) {
+      for (std::size_t k = 0; k < n && (use_texcoords || use_normals); ++k) {
+        const ObjCorner& corner = corners[k];
+        if (corner.texcoord < 0 || static_cast<std::size_t>(corner.texcoord) >= texcoord_count) use_texcoords = false;
+        if (corner.normal < 0 || !obj.normal_usable[static_cast<std::size_t>(corner.normal)]) use_normals = false;
       }
-      const auto n = static_cast<std::size_t>(index.normal_index);
-      const double length = glm::length(Vec3d(obj.attrib.normals[3 * n], obj.attrib.normals[3 * n + 1],
-                                              obj.attrib.normals[3 * n + 2]));
-      if (!(length > 0.0 && std::isfinite(length))) use_normals = false;
-    }
+      triangle_count += n - 2;
+    });
 
   TriangleMesh mesh;
-  std::unordered_map<std::uint64_t, std::uint32_t> vertex_of_key;
-  auto vertex_for = [&](const tinyobj::index_t& index) -> std::uint32_t {
-    const auto v = static_cast<std::uint64_t>(index.vertex_index);
-    std::uint64_t key = use_normals ? v * obj.normal_count + static_cast<std::uint64_t>(index.normal_index) : v;
-    if (use_texcoords) key = key * texcoord_count + static_cast<std::uint64_t>(index.texcoord_index);
-    auto [it, inserted] = vertex_of_key.try_emplace(key, static_cast<std::uint32_t>(mesh.positions.size()));
-    if (inserted) {
-      const auto& p = obj.attrib.vertices;
-      mesh.positions.push_back(Vec3f(Vec3d(p[3 * v], p[3 * v + 1], p[3 * v + 2])));
-      if (use_normals) {
-        const auto n = static_cast<std::size_t>(index.normal_index);
-        const auto& q = obj.attrib.normals;
-        mesh.normals.push_back(Vec3f(glm::normalize(Vec3d(q[3 * n], q[3 * n + 1], q[3 * n + 2]))));
-      }
-      if (use_texcoords) {
-        const auto c = static_cast<std::size_t>(index.texcoord_index);
-        mesh.texcoords.push_back(Vec2f(obj.attrib.texcoords[2 * c], 1.0f - obj.attrib.texcoords[2 * c + 1]));
-      }
+  mesh.triangles.reserve(triangle_count);
+  mesh.positions.reserve(std::min(obj.position_count(), 3 * triangle_count));
+  auto add_vertex = [&](const ObjCorner& corner) {
+    const auto v = static_cast<std::size_t>(corner.position);
+    mesh.positions.push_back(Vec3f(obj.positions[3 * v], obj.positions[3 * v + 1], obj.positions[3 * v + 2]));
+    if (use_normals) {
+      const auto n = static_cast<std::size_t>(corner.normal);
+      const auto& q = obj.normals;
+      mesh.normals.push_back(Vec3f(glm::normalize(Vec3d(q[3 * n], q[3 * n + 1], q[3 * n + 2]))));
     }
-    return it->second;
+    if (use_texcoords) {
+      const auto c = static_cast<std::size_t>(corner.texcoord);
+      mesh.texcoords.push_back(Vec2f(obj.texcoords[2 * c], 1.0f - obj.texcoords[2 * c + 1]));
+    }
+    return static_cast<std::uint32_t>(mesh.positions.size() - 1);
   };
-  for (const ObjTriangle& t : triangles)
-    mesh.triangles.push_back({vertex_for(t.corners[0]), vertex_for(t.corners[1]), vertex_for(t.corners[2])});
+  auto add_triangles = [&](auto&& vertex_for) {
+    for (const auto& [first, end] : runs)
+      for_each_face(obj, first, end, [&](const ObjCorner* corners, std::size_t n) {
+        triangulate_face(obj, corners, n, [&](std::size_t a, std::size_t b, std::size_t c) {
+          mesh.triangles.push_back({vertex_for(corners[a]), vertex_for(corners[b]), vertex_for(corners[c])});
+        });
+      });
+  };
+  if (!use_normals && !use_texcoords) {
+    // The key is the position index: a table of the file's positions instead of a hash map.
+    if (position_vertex.empty()) position_vertex.assign(obj.position_count(), kUnassigned);
+    std::vector<std::int32_t> used;  // the positions given a vertex, to reset their entries after
+    used.reserve(mesh.positions.capacity());
+    add_triangles([&](const ObjCorner& corner) {
+      std::uint32_t& vertex = position_vertex[static_cast<std::size_t>(corner.position)];
+      if (vertex == kUnassigned) {
+        vertex = add_vertex(corner);
+        used.push_back(corner.position);
+      }
+      return vertex;
+    });
+    for (std::int32_t position : used) position_vertex[static_cast<std::size_t>(position)] = kUnassigned;
+  } else {
+    std::unordered_map<std::uint64_t, std::uint32_t> vertex_of_key;
+    vertex_of_key.reserve(triangle_count);
+    add_triangles([&](const ObjCorner& corner) {
+      const auto v = static_cast<std::uint64_t>(corner.position);
+      std::uint64_t key = use_normals ? v * normal_count + static_cast<std::uint64_t>(corner.normal) : v;
+      if (use_texcoords) key = key * texcoord_count + static_cast<std::uint64_t>(corner.texcoord);
+      const auto [it, inserted] = vertex_of_key.try_emplace(key, 0);
+      if (inserted) it->second = add_vertex(corner);
+      return it->second;
+    });
+  }
   if (!use_normals) compute_vertex_normals(mesh);
   return mesh;
 }
@@ -333,15 +167,10 @@ std::string join(const std::vector<std::string>& names) {
 
 }  // namespace
 
-TriangleMesh load_obj_mesh(const std::string& path) {
-  const ObjFile obj = read_obj(path);
-  std::vector<ObjTriangle> triangles;
-  std::size_t face = 0;
-  for (const tinyobj::shape_t& shape : obj.shapes) {
-    for (const auto& [triangle, material] : triangulate_shape(path, obj, shape, face)) triangles.push_back(triangle);
-    face += shape.mesh.num_face_vertices.size();
-  }
-  return build_mesh(obj, triangles);
+TriangleMesh load_obj_mesh(const std::string& path, const ObjLoadOptions& options) {
+  const ObjFile obj = read_obj(path, options);
+  std::vector<std::uint32_t> position_vertex;
+  return build_mesh(obj, FaceRuns{{0, obj.face_count()}}, position_vertex);
 }
 
 Material default_obj_material() {
@@ -355,8 +184,8 @@ Material default_obj_material() {
   return material;
 }
 
-Scene load_obj_scene(const std::string& path, LoadReport* report) {
-  const ObjFile obj = read_obj(path);
+Scene load_obj_scene(const std::string& path, LoadReport* report, const ObjLoadOptions& options) {
+  const ObjFile obj = read_obj(path, options);
   Scene scene;
   scene.source = path;
   for (const tinyobj::material_t& m : obj.materials)
@@ -365,18 +194,25 @@ Scene load_obj_scene(const std::string& path, LoadReport* report) {
   Node root;
   root.name = fs::path(path).filename().string();
 
-  std::size_t face = 0;
-  for (const tinyobj::shape_t& shape : obj.shapes) {
-    // Groups in order of first use within the shape.
+  std::vector<std::uint32_t> position_vertex;
+  for (std::size_t s = 0; s + 1 < obj.shape_starts.size(); ++s) {
+    // One model per material of the shape, in order of first use within it.
     std::vector<int> order;
-    std::map<int, std::vector<ObjTriangle>> groups;
-    for (const auto& [triangle, material] : triangulate_shape(path, obj, shape, face)) {
+    std::map<int, FaceRuns> groups;
+    // The material runs that overlap the shape, clipped to it.
+    const std::size_t shape_begin = obj.shape_starts[s], shape_end = obj.shape_starts[s + 1];
+    auto run = std::upper_bound(obj.material_runs.begin(), obj.material_runs.end(), shape_begin,
+                                [](std::size_t face, const auto& r) { return face < r.first; }) - 1;
+    for (; run != obj.material_runs.end() && run->first < shape_end; ++run) {
+      const std::size_t first = std::max(run->first, shape_begin);
+      const std::size_t end = std::min(run + 1 == obj.material_runs.end() ? shape_end : (run + 1)->first, shape_end);
+      if (first >= end) continue;
+      const int material = run->second;
       const int id = material >= 0 && static_cast<std::size_t>(material) < obj.materials.size() ? material : -1;
       auto [it, inserted] = groups.try_emplace(id);
       if (inserted) order.push_back(id);
-      it->second.push_back(triangle);
+      it->second.emplace_back(first, end);
     }
-    face += shape.mesh.num_face_vertices.size();
     for (int id : order) {
       std::uint32_t material;
       if (id >= 0) {
@@ -388,7 +224,8 @@ Scene load_obj_scene(const std::string& path, LoadReport* report) {
         }
         material = *default_material;
       }
-      root.models.push_back({std::make_shared<const TriangleMesh>(build_mesh(obj, groups[id])), material});
+      root.models.push_back(
+          {std::make_shared<const TriangleMesh>(build_mesh(obj, groups[id], position_vertex)), material});
     }
   }
   if (scene.materials.empty()) scene.materials.push_back(default_obj_material());

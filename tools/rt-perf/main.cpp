@@ -1,7 +1,8 @@
 // rt-perf: measures what accuracy costs in time. `intersect` compares Embree with the reference
 // intersector (build time and memory, Mrays/s, agreement); `accuracy` renders a ground truth and
 // sweeps one knob at a time (spp, depth, tessellation, Embree options, ray offsets, approximations);
-// `retrace` compares a render phase with Embree re-tracing the same rays.
+// `retrace` compares a render phase with Embree re-tracing the same rays;
+// `load` times the scene loaders against a raw read of the files.
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
@@ -9,13 +10,15 @@
 #include "accuracy.h"
 #include "intersect.h"
 #include "retrace.h"
+#include "load.h"
 
 int main(int argc, char** argv) {
-  CLI::App app{"rt-perf: what accuracy costs in time, and Embree against the reference intersector"};
+  CLI::App app{"rt-perf: what accuracy costs in time, Embree against the reference intersector, render against re-trace, load times"};
   app.require_subcommand(1);
   const std::function<int()> run_intersect = rt::perf::add_intersect_command(app);
   const std::function<int()> run_accuracy = rt::perf::add_accuracy_command(app);
   const std::function<int()> run_retrace = rt::perf::add_retrace_command(app);
+  const std::function<int()> run_load = rt::perf::add_load_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& error) {
@@ -26,6 +29,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("intersect")) return run_intersect();
     if (app.got_subcommand("accuracy")) return run_accuracy();
     if (app.got_subcommand("retrace")) return run_retrace();
+    if (app.got_subcommand("load")) return run_load();
   } catch (const std::exception& error) {
     fmt::print(stderr, "rt-perf: error: {}\n", error.what());
   }

@@ -21,7 +21,8 @@ namespace rt {
 // Replaces mesh.normals by smooth per-vertex normals: the angle-weighted average of the
 // incident faces' normals (Thürmer & Wüthrich, "Computing vertex normals from polygonal
 // facets", JGT 1998), which does not depend on how a polygon was triangulated. A vertex
-// touched only by degenerate faces gets (0, 0, 1). Object space, computed in double.
+// touched only by degenerate faces gets (0, 0, 1). Object space, computed in double; uses TBB's
+// threads, with the same result bit for bit on any number of them.
 void compute_vertex_normals(TriangleMesh& mesh);
 
 }  // namespace rt
