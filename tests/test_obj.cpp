@@ -629,7 +629,7 @@ TEST_CASE("OBJ parser: relative indices reach back across many chunks", "[obj]")
                              "vertex"));
 }
 
-TEST_CASE("OBJ parser: errors in late chunks name their line; the number check comes first", "[obj]") {
+TEST_CASE("OBJ parser: errors in late chunks name their line and the number check comes first", "[obj]") {
   rt_test::TempDir dir;
   std::string head;
   for (int i = 0; i < 300; ++i) head += fmt::format("v {} {} 0\n", i % 17, i % 5);  // lines 1-300

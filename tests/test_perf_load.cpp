@@ -18,7 +18,7 @@ const char* const kTriangleObj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
 
 }  // namespace
 
-TEST_CASE("load: a .gltf counts its buffer and image files, once each; other formats the file alone", "[perf]") {
+TEST_CASE("load: a .gltf counts its buffer and image files, once each and other formats the file alone", "[perf]") {
   rt_test::TempDir dir;
   rt_test::write_file(dir.path() / "mesh data.bin", std::string(100, 'x'));
   rt_test::write_file(dir.path() / "albedo.png", std::string(30, 'y'));
@@ -55,7 +55,7 @@ TEST_CASE("load: the measurement's MB/s is bytes over the median, 1 MB = 10^6 by
   CHECK(m.load_mb_per_second() == 0.0);
 }
 
-TEST_CASE("rt-perf load prints a table or one JSON object per file; bad arguments fail", "[perf]") {
+TEST_CASE("rt-perf load prints a table or one JSON object per file and bad arguments fail", "[perf]") {
   rt_test::TempDir dir;
   rt_test::write_file(dir.path() / "tri.obj", kTriangleObj);
   rt_test::write_file(dir.path() / "bad.obj", "v 0 0 0\nf 1 2 3\n");
