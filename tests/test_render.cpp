@@ -156,6 +156,59 @@ TEST_CASE("render reports progress once per tile, reaching 1", "[render]") {
   CHECK(*std::max_element(reported.begin(), reported.end()) == 1.0);
 }
 
+TEST_CASE("rendering samples one at a time and averaging them in order gives the --spp render bit for bit", "[render]") {
+  rt::Scene scene = rt::make_default_scene();
+  scene.settings.width = 40;
+  scene.settings.height = 30;
+  const rt::FlatScene flat = rt::flatten_scene(scene);
+  const std::unique_ptr<rt::Accel> accel = rt::build_accel(rt::AccelKind::embree, flat);
+  rt::RenderOptions options;
+  options.threads = 2;
+  options.samples_per_pixel = 5;
+  const rt::RenderResult whole = rt::render_image(scene, flat, *accel, options);
+  std::vector<rt::Vec3d> sums(whole.image.pixels.size(), rt::Vec3d(0.0));
+  std::uint64_t camera_rays = 0;
+  for (int s = 0; s < 5; ++s) {
+    options.sample_index = s;
+    const rt::RenderResult one = rt::render_image(scene, flat, *accel, options);
+    camera_rays += one.rays.camera;
+    for (std::size_t i = 0; i < sums.size(); ++i) sums[i] += rt::Vec3d(one.image.pixels[i]);
+  }
+  CHECK(camera_rays == whole.rays.camera);
+  std::size_t differing = 0;
+  for (std::size_t i = 0; i < sums.size(); ++i) {
+    const rt::Color average(sums[i] / 5.0);  // as render_block averages
+    differing += std::memcmp(&whole.image.pixels[i], &average, sizeof(rt::Color)) != 0;
+  }
+  CHECK(differing == 0);
+  options.sample_index = 5;
+  CHECK_THROWS_AS(rt::render_image(scene, flat, *accel, options), std::invalid_argument);
+}
+
+TEST_CASE("render hands every finished tile to on_tile once, with its final pixels", "[render]") {
+  rt::Scene scene = rt::make_default_scene();
+  scene.settings.width = 50;
+  scene.settings.height = 30;
+  const rt::FlatScene flat = rt::flatten_scene(scene);
+  const std::unique_ptr<rt::Accel> accel = rt::build_accel(rt::AccelKind::embree, flat);
+  rt::RenderOptions options;
+  options.threads = 2;
+  options.tile_size = 16;
+  options.region = rt::PixelRegion{3, 2, 50, 30};
+  rt::Image seen(47, 28);
+  std::vector<int> times_seen(seen.pixels.size(), 0);
+  options.on_tile = [&](const rt::PixelRegion& tile, const rt::Image& image) {
+    for (int y = tile.y0; y < tile.y1; ++y)
+      for (int x = tile.x0; x < tile.x1; ++x) {
+        seen.at(x - 3, y - 2) = image.at(x - 3, y - 2);
+        ++times_seen[std::size_t((y - 2) * 47 + (x - 3))];
+      }
+  };
+  const rt::RenderResult result = rt::render_image(scene, flat, *accel, options);
+  CHECK(std::count(times_seen.begin(), times_seen.end(), 1) == std::ptrdiff_t(times_seen.size()));
+  CHECK(std::memcmp(seen.pixels.data(), result.image.pixels.data(), seen.pixels.size() * sizeof(rt::Color)) == 0);
+}
+
 TEST_CASE("render puts row 0 at the top and column 0 at the left", "[render]") {
   // Camera at (0, 0, 1) looking down -z, up +y, fovy 90, 4x4 pixels: pixel (i, j) looks at
   // (alpha, beta, 0) with alpha, beta in {-0.75, -0.25, 0.25, 0.75}. A red emitter covers y > 0

@@ -78,57 +78,6 @@ int run_cli(int argc, char** argv) {
             "$SLURM_ARRAY_TASK_ID/N). Output: OpenEXR, default <scene name>.tile-K-of-N.exr")
       ->type_name("K/N")
       ->excludes("--crop");
-  render->add_option("--width", render_args.width, "Image width in pixels")->check(CLI::Range(1, kMaxImageSide));
-  render->add_option("--height", render_args.height, "Image height in pixels")->check(CLI::Range(1, kMaxImageSide));
-  render->add_option("--max-depth", render_args.max_depth, "Reflection depth (0 = no reflections)")
-      ->check(CLI::Range(0, kMaxReflectionDepth));
-  render->add_option("--spp", render_args.spp,
-                     "Samples per pixel: 1 = the pixel centre (the seed's camera); N > 1 = stratified jittered "
-                     "samples averaged with a box filter (anti-aliasing), the same image for any thread count")
-      ->check(CLI::Range(1, 1 << 16))
-      ->capture_default_str();
-  render->add_option("--accel", render_args.accel, "Intersector: embree (fast), reference (watertight, double, brute force) or "
-                     "reference-barycentric (the seed's plain solve, double, brute force)")
-      ->check(CLI::IsMember({"embree", "reference", "reference-barycentric"}))
-      ->capture_default_str();
-  render->add_option("--embree-robust", render_args.embree_robust,
-                     "Embree's robust mode: watertight triangle test, conservative boxes")
-      ->check(CLI::IsMember({"on", "off"}))
-      ->capture_default_str();
-  render->add_option("--embree-quality", render_args.embree_quality, "Embree BVH build quality")
-      ->check(CLI::IsMember({"low", "medium", "high"}))
-      ->capture_default_str();
-  render->add_option("--embree-kernel", render_args.embree_kernel,
-                     "Triangle test inside Embree's BVH: native (Embree's, fastest) or watertight (the reference's "
-                     "double-precision watertight test: no ray slips through a closed mesh, slower)")
-      ->check(CLI::IsMember({"native", "watertight"}))
-      ->capture_default_str();
-  render->add_option("--sphere-tessellation", render_args.sphere_tessellation,
-                     "Spheres: 0 = exact quadrics, N >= 3 = UV spheres of N slices and N/2 stacks (for comparison)")
-      ->check(CLI::Validator(
-          [](std::string& value) {
-            const int n = std::atoi(value.c_str());
-            return n == 0 || (n >= 3 && n <= 4096) ? std::string() : "must be 0 or 3..4096";
-          },
-          "0 or 3..4096"))
-      ->capture_default_str();
-  render->add_option("--ray-offset", render_args.ray_offset,
-                     "Self-intersection policy of secondary rays: robust (scale-independent error bound) "
-                     "or fixed:EPS (a constant distance in scene units, e.g. fixed:1e-4)")
-      ->capture_default_str();
-  render->add_option("--threads", render_args.threads, "Worker threads (0 = all cores)")
-      ->check(CLI::Range(0, 1024))
-      ->capture_default_str();
-  render->add_option_function<std::string>(
-            "--memory-limit",
-            [&render_args](const std::string& text) {
-              const std::optional<std::uint64_t> bytes = parse_bytes(text);
-              if (!bytes || *bytes == 0) throw CLI::ValidationError("--memory-limit", "expected a size such as 512M or 8G");
-              render_args.memory_limit = *bytes;
-            },
-            "Refuse (with a clear error, before allocating) work that needs more memory than this, e.g. 8G; "
-            "default: what the machine has available")
-      ->type_name("SIZE");
   render->add_option("--stats", render_args.stats_path,
                      "Write ray counts, the effects plan, the ray budget and phase timings as JSON to this file");
   render->add_flag("--partial-output", render_args.partial_output,
@@ -152,9 +101,83 @@ int run_cli(int argc, char** argv) {
                         "(linear RGB); error <= value x lights x path weight bound")
         ->check(CLI::Range(0.0, 1.0));
   };
+  // The settings of an image, shared by rt render and rt view.
+  const auto add_image_options = [](CLI::App* command, RenderArgs& args) {
+    command->add_option("--width", args.width, "Image width in pixels")->check(CLI::Range(1, kMaxImageSide));
+    command->add_option("--height", args.height, "Image height in pixels")->check(CLI::Range(1, kMaxImageSide));
+    command->add_option("--max-depth", args.max_depth, "Reflection depth (0 = no reflections)")
+        ->check(CLI::Range(0, kMaxReflectionDepth));
+    command->add_option("--spp", args.spp,
+                       "Samples per pixel: 1 = the pixel centre (the seed's camera); N > 1 = stratified jittered "
+                       "samples averaged with a box filter (anti-aliasing), the same image for any thread count")
+        ->check(CLI::Range(1, 1 << 16))
+        ->capture_default_str();
+    command->add_option("--accel", args.accel, "Intersector: embree (fast), reference (watertight, double, brute force) or "
+                       "reference-barycentric (the seed's plain solve, double, brute force)")
+        ->check(CLI::IsMember({"embree", "reference", "reference-barycentric"}))
+        ->capture_default_str();
+    command->add_option("--embree-robust", args.embree_robust,
+                       "Embree's robust mode: watertight triangle test, conservative boxes")
+        ->check(CLI::IsMember({"on", "off"}))
+        ->capture_default_str();
+    command->add_option("--embree-quality", args.embree_quality, "Embree BVH build quality")
+        ->check(CLI::IsMember({"low", "medium", "high"}))
+        ->capture_default_str();
+    command->add_option("--embree-kernel", args.embree_kernel,
+                       "Triangle test inside Embree's BVH: native (Embree's, fastest) or watertight (the reference's "
+                       "double-precision watertight test: no ray slips through a closed mesh, slower)")
+        ->check(CLI::IsMember({"native", "watertight"}))
+        ->capture_default_str();
+    command->add_option("--sphere-tessellation", args.sphere_tessellation,
+                       "Spheres: 0 = exact quadrics, N >= 3 = UV spheres of N slices and N/2 stacks (for comparison)")
+        ->check(CLI::Validator(
+            [](std::string& value) {
+              const int n = std::atoi(value.c_str());
+              return n == 0 || (n >= 3 && n <= 4096) ? std::string() : "must be 0 or 3..4096";
+            },
+            "0 or 3..4096"))
+        ->capture_default_str();
+    command->add_option("--ray-offset", args.ray_offset,
+                       "Self-intersection policy of secondary rays: robust (scale-independent error bound) "
+                       "or fixed:EPS (a constant distance in scene units, e.g. fixed:1e-4)")
+        ->capture_default_str();
+    command->add_option("--threads", args.threads, "Worker threads (0 = all cores)")
+        ->check(CLI::Range(0, 1024))
+        ->capture_default_str();
+    command->add_option_function<std::string>(
+              "--memory-limit",
+              [&args](const std::string& text) {
+                const std::optional<std::uint64_t> bytes = parse_bytes(text);
+                if (!bytes || *bytes == 0) throw CLI::ValidationError("--memory-limit", "expected a size such as 512M or 8G");
+                args.memory_limit = *bytes;
+              },
+              "Refuse (with a clear error, before allocating) work that needs more memory than this, e.g. 8G; "
+              "default: what the machine has available")
+        ->type_name("SIZE");
+  };
+  add_image_options(render, render_args);
   add_effects_options(render, render_args.effects);
   render->add_flag("-q,--quiet", render_args.quiet, "No progress bar, summary line, warnings or notes");
   add_scene_options(*render, render_args.scene);
+
+  ViewArgs view_args;
+  CLI::App* view = app.add_subcommand(
+      "view", "Render a scene in a window, progressively (the built-in default scene when none is given); drag to "
+              "orbit, wheel to zoom, R re-render, S save, Q quit");
+  view->add_option("scene", view_args.scene_path, "Scene file (.json, .test, .gltf, .glb, .obj)");
+  add_gltf_options(view, view_args.render.gltf);
+  view->add_option("-o,--output", view_args.render.output,
+                   "Where S saves the image shown; format by extension. Default: the scene's \"output\", else "
+                   "<scene name>.png");
+  view->add_option("--screenshot", view_args.screenshot,
+                   "When the render is complete, read the window's pixels back and write them to this 8-bit image "
+                   "(png, ppm, ...)");
+  view->add_flag("--exit-when-done", view_args.exit_when_done,
+                 "Close the window once the render is complete (and the --screenshot written)");
+  add_image_options(view, view_args.render);
+  add_effects_options(view, view_args.render.effects);
+  view->add_flag("-q,--quiet", view_args.render.quiet, "No notes or summary lines on stderr");
+  add_scene_options(*view, view_args.render.scene);
 
   std::vector<std::string> merge_paths;
   std::string merge_output;
@@ -184,6 +207,7 @@ int run_cli(int argc, char** argv) {
 
   try {
     if (*render) return run_render(render_args);
+    if (*view) return run_view(view_args);
     if (*merge) return run_merge(merge_paths, merge_output, merge_quiet);
     if (*info) return run_info(info_path, info_gltf, info_scene, info_effects);
   } catch (const UsageError& error) {

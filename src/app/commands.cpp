@@ -29,6 +29,7 @@
 #include "rt/io/merge.h"
 #include "rt/render/fingerprint.h"
 #include "rt/render/render.h"
+#include "rt/view/viewer.h"
 #include "ray_budget.h"
 
 namespace rt {
@@ -155,6 +156,30 @@ struct BatchContext {
   RayOffset ray_offset;
 };
 
+// The batch settings of `args`: threads (0: all cores), intersector and ray offsets.
+BatchContext make_batch_context(const RenderArgs& args) {
+  BatchContext batch;
+  batch.threads = args.threads > 0 ? args.threads : tbb::info::default_concurrency();
+  batch.accel_kind = parse_accel_kind(args.accel);
+  batch.accel_options.embree_robust = args.embree_robust == "on";
+  batch.accel_options.embree_quality = parse_embree_quality(args.embree_quality);
+  batch.accel_options.embree_kernel = parse_embree_kernel(args.embree_kernel);
+  batch.ray_offset = parse_ray_offset(args.ray_offset);
+  return batch;
+}
+
+// The scene at `scene_path` (empty: the default scene) with the command line's image settings and
+// scene options applied, validated.
+Scene load_for_render(const RenderArgs& args, const std::string& scene_path, LoadReport& report) {
+  Scene scene = load_scene_or_default(scene_path, args.gltf, &report);
+  if (args.width) scene.settings.width = *args.width;
+  if (args.height) scene.settings.height = *args.height;
+  if (args.max_depth) scene.settings.max_depth = *args.max_depth;
+  apply_scene_options(args.scene, report, scene);
+  validate_scene(scene);
+  return scene;
+}
+
 enum class Outcome { rendered, skipped, cancelled };
 
 // Renders one scene (or its region) to its output; returns the exit status of an interrupted
@@ -168,12 +193,7 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
       return Outcome::skipped;
     }
   LoadReport report;
-  Scene scene = load_scene_or_default(scene_path, args.gltf, &report);
-  if (args.width) scene.settings.width = *args.width;
-  if (args.height) scene.settings.height = *args.height;
-  if (args.max_depth) scene.settings.max_depth = *args.max_depth;
-  apply_scene_options(args.scene, report, scene);
-  validate_scene(scene);
+  Scene scene = load_for_render(args, scene_path, report);
   const std::string output = output_after_loading(args, scene_path, scene);
   if (args.skip_existing && fs::exists(output)) {
     if (!args.quiet) fmt::print(stderr, "rt: {} exists, skipped (--skip-existing)\n", output);
@@ -328,15 +348,9 @@ void check_batch(const RenderArgs& args) {
 int run_render(const RenderArgs& args) {
   check_batch(args);
   set_memory_limit(args.memory_limit);
-  BatchContext batch;
-  batch.threads = args.threads > 0 ? args.threads : tbb::info::default_concurrency();
+  BatchContext batch = make_batch_context(args);
   // Limits Embree's BVH build (TBB tasks) as well as the render loop.
   tbb::global_control thread_limit(tbb::global_control::max_allowed_parallelism, batch.threads);
-  batch.accel_kind = parse_accel_kind(args.accel);
-  batch.accel_options.embree_robust = args.embree_robust == "on";
-  batch.accel_options.embree_quality = parse_embree_quality(args.embree_quality);
-  batch.accel_options.embree_kernel = parse_embree_kernel(args.embree_kernel);
-  batch.ray_offset = parse_ray_offset(args.ray_offset);
   if (!args.outdir.empty()) {
     std::error_code error;
     fs::create_directories(args.outdir, error);
@@ -378,6 +392,39 @@ int run_render(const RenderArgs& args) {
                seconds_since(start), rendered, skipped, failed.size(), failed.empty() ? "" : ": ",
                printable_line(fmt::format("{}", fmt::join(failed, ", "))));
   return failed.empty() ? 0 : 1;
+}
+
+int run_view(const ViewArgs& args) {
+  check_display();  // before loading anything: without a window system, one line and exit 1
+  set_memory_limit(args.render.memory_limit);
+  const BatchContext batch = make_batch_context(args.render);
+  tbb::global_control thread_limit(tbb::global_control::max_allowed_parallelism, batch.threads);
+  LoadReport report;
+  Scene scene = load_for_render(args.render, args.scene_path, report);
+  ViewOptions options;
+  options.save_path = args.render.output.empty() ? default_output(scene, args.scene_path) : args.render.output;
+  check_output_path(options.save_path);
+  if (!args.screenshot.empty()) {
+    check_output_path(args.screenshot);
+    if (writes_float(args.screenshot))
+      throw InputError(args.screenshot, "", "a screenshot holds the window's 8-bit pixels; use .png, .ppm or .tif");
+  }
+  check_render_memory(scene);
+  const FlatScene flat = flatten_scene(scene, FlattenOptions{.sphere_tessellation = args.render.sphere_tessellation});
+  release_object_meshes(scene);
+  if (!args.render.quiet) print_notices(args.render.scene, report, scene);
+  warn_about_dropped_triangles(scene, flat, args.render.quiet);
+  const std::unique_ptr<Accel> accel = build_accel(batch.accel_kind, flat, batch.accel_options);
+
+  options.render.threads = batch.threads;
+  options.render.samples_per_pixel = args.render.spp;
+  options.render.ray_offset = batch.ray_offset;
+  options.render.effects = args.render.effects;
+  options.screenshot_path = args.screenshot;
+  options.exit_when_done = args.exit_when_done;
+  options.scene_name = args.scene_path.empty() ? "<built-in default>" : fs::path(args.scene_path).filename().string();
+  options.quiet = args.render.quiet;
+  return run_viewer(scene, flat, *accel, options);
 }
 
 int run_merge(const std::vector<std::string>& paths, const std::string& output, bool quiet) {

@@ -1,5 +1,5 @@
 #pragma once
-// What `rt render` (one scene, a batch, or a region of an image), `rt merge` and `rt info` do.
+// What `rt render` (one scene, a batch, or a region of an image), `rt view`, `rt merge` and `rt info` do.
 // Internal to the app module: cli.cpp parses the flags and calls these.
 
 #include <cstdint>
@@ -48,10 +48,22 @@ struct RenderArgs {
   SceneOptions scene;
 };
 
+// rt view: one scene in a window (rt/view/viewer.h), with rt render's image settings.
+struct ViewArgs {
+  std::string scene_path;  // empty: the built-in default scene
+  RenderArgs render;       // image settings; output: where S saves
+  std::string screenshot;
+  bool exit_when_done = false;
+};
+
 // Renders each scene in turn (a failing scene is reported and the batch goes on), returning the
 // exit status: 0 all rendered or skipped, 1 some failed, 128 + signal when interrupted. A single
 // scene's error propagates as an exception (InputError, UsageError, ...), as before batches.
 int run_render(const RenderArgs& args);
+
+// rt view: checks for a display first (RuntimeError pointing to rt render when there is none), then
+// loads, flattens and builds the scene as rt render does and shows it. Returns the viewer's status.
+int run_view(const ViewArgs& args);
 
 // rt merge: stitches region files into `output` (merge_regions, then write_image). Returns 0;
 // throws on error.

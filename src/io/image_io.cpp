@@ -4,6 +4,7 @@
 #include <cmath>
 #include <csetjmp>
 #include <filesystem>
+#include <stdexcept>
 #include <system_error>
 
 #include <fmt/format.h>
@@ -83,23 +84,24 @@ bool write_png(png_structp png, png_infop info, std::vector<unsigned char>* out,
 }
 
 // 8-bit RGB PNG, tagged sRGB (how the quantised values are meant to be displayed).
-std::vector<unsigned char> encode_png(const Image& image, const std::vector<std::uint8_t>& rgb8, const std::string& path) {
+std::vector<unsigned char> encode_png(int width, int height, const std::vector<std::uint8_t>& rgb8,
+                                      const std::string& path) {
   std::string error = "out of memory";
   png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &error, &on_png_error, &on_png_warning);
   png_infop info = png ? png_create_info_struct(png) : nullptr;
-  std::vector<png_bytep> rows(static_cast<std::size_t>(image.height));
-  for (int y = 0; y < image.height; ++y)
-    rows[std::size_t(y)] = const_cast<png_bytep>(rgb8.data() + std::size_t(y) * std::size_t(image.width) * 3);
+  std::vector<png_bytep> rows(static_cast<std::size_t>(height));
+  for (int y = 0; y < height; ++y)
+    rows[std::size_t(y)] = const_cast<png_bytep>(rgb8.data() + std::size_t(y) * std::size_t(width) * 3);
   std::vector<unsigned char> encoded;
-  const bool ok = info && write_png(png, info, &encoded, rows.data(), image.width, image.height);
+  const bool ok = info && write_png(png, info, &encoded, rows.data(), width, height);
   png_destroy_write_struct(&png, &info);
   if (!ok) throw RuntimeError(fmt::format("{}: cannot encode the image: {}", path, error));
   return encoded;
 }
 
 // Binary PPM (P6), maxval 255.
-std::vector<unsigned char> encode_ppm(const Image& image, const std::vector<std::uint8_t>& rgb8) {
-  const std::string header = fmt::format("P6\n{} {}\n255\n", image.width, image.height);
+std::vector<unsigned char> encode_ppm(int width, int height, const std::vector<std::uint8_t>& rgb8) {
+  const std::string header = fmt::format("P6\n{} {}\n255\n", width, height);
   std::vector<unsigned char> encoded(header.begin(), header.end());
   encoded.insert(encoded.end(), rgb8.begin(), rgb8.end());
   return encoded;
@@ -120,22 +122,44 @@ void check_output_path(const std::string& path) {
   check_parent_directory_writable(path);
 }
 
-void write_image(const Image& image, const std::string& path, const ImageHeader& header) {
-  check_format(path);
+namespace {
+
+// Encodes by extension and writes atomically: `image`'s floats when as_float, else `rgb8`, with
+// `image` giving only the size.
+void encode_and_write(const std::string& path, const Image& image, bool as_float, const std::vector<std::uint8_t>& rgb8,
+                      const ImageHeader& header) {
   const std::string ext = lower_extension(path);
-  const bool as_float = writes_float(path);
-  const std::vector<std::uint8_t> rgb8 = as_float ? std::vector<std::uint8_t>{} : to_rgb8(image);
   std::vector<unsigned char> encoded;
   if (ext == ".png") {
-    encoded = encode_png(image, rgb8, path);
+    encoded = encode_png(image.width, image.height, rgb8, path);
   } else if (ext == ".ppm") {
-    encoded = encode_ppm(image, rgb8);
+    encoded = encode_ppm(image.width, image.height, rgb8);
   } else {
     std::string error;
     encoded = oiio_module().encode(path, image, as_float, rgb8, header, error);
     if (!error.empty()) throw RuntimeError(fmt::format("{}: cannot encode the image: {}", path, error));
   }
   write_file_atomically(path, std::string_view(reinterpret_cast<const char*>(encoded.data()), encoded.size()));
+}
+
+}  // namespace
+
+void write_image(const Image& image, const std::string& path, const ImageHeader& header) {
+  check_format(path);
+  const bool as_float = writes_float(path);
+  encode_and_write(path, image, as_float, as_float ? std::vector<std::uint8_t>{} : to_rgb8(image), header);
+}
+
+void write_rgb8(int width, int height, const std::vector<std::uint8_t>& rgb8, const std::string& path) {
+  check_format(path);
+  if (writes_float(path))
+    throw InputError(path, "", "an 8-bit image cannot be written in a float format; use .png, .ppm or .tif");
+  if (rgb8.size() != std::size_t(width) * std::size_t(height) * 3)
+    throw std::invalid_argument(fmt::format("write_rgb8: {} bytes for {}x{} pixels", rgb8.size(), width, height));
+  Image size_only;
+  size_only.width = width;
+  size_only.height = height;
+  encode_and_write(path, size_only, false, rgb8, ImageHeader{});
 }
 
 Image read_image(const std::string& path, ImageHeader* header) {

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <chrono>
 #include <mutex>
+#include <stdexcept>
 
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
@@ -86,6 +87,8 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   const ShadingContext timed_context{scene, flat, accel, result.plan, options.ray_offset, &textures, true};
   const int tile = std::max(1, options.tile_size);
   const int spp = std::max(1, options.samples_per_pixel);
+  if (options.sample_index >= spp)
+    throw std::invalid_argument(fmt::format("sample_index {} of {} samples", options.sample_index, spp));
   const int tiles_x = (region.width() + tile - 1) / tile, tiles_y = (region.height() + tile - 1) / tile;
   const int tile_count = tiles_x * tiles_y;
 
@@ -140,7 +143,10 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
     std::array<Vec3d, kBlockPixels> sums{};  // linear RGB, double: the box filter's average (spp > 1)
     std::array<Ray, kBlockPixels> rays;
     std::array<Hit, kBlockPixels> hits;
-    for (int s = 0; s < spp; ++s) {
+    const bool one_sample = options.sample_index >= 0;  // the image holds sample sample_index alone
+    const int first_sample = one_sample ? options.sample_index : 0;
+    const int end_sample = one_sample ? options.sample_index + 1 : spp;
+    for (int s = first_sample; s < end_sample; ++s) {
       for (int k = 0; k < n; ++k)
         rays[k] = spp == 1 ? ray_through_pixel(frame, xs[k], ys[k]) : ray_through_pixel_sample(frame, xs[k], ys[k], s, spp);
       std::uint64_t start = options.time_queries ? __rdtsc() : 0;
@@ -207,16 +213,16 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
         if (timed[k]) start = __rdtsc();
         const std::uint64_t pixel = std::uint64_t(ys[k]) * std::uint64_t(width) + std::uint64_t(xs[k]);
         const Color c = guarded(finish_camera_hit(pending, std::size_t(k), state.blocked), state, pixel);
-        if (spp == 1)
+        if (spp == 1 || one_sample)
           result.image.at(xs[k] - region.x0, ys[k] - region.y0) = c;
         else
           sums[k] += Vec3d(c);
         if (timed[k]) counts.loop_ticks += ticks[k] + (__rdtsc() - start);
       }
     }
-    if (spp > 1)
+    if (spp > 1 && !one_sample)
       for (int k = 0; k < n; ++k) result.image.at(xs[k] - region.x0, ys[k] - region.y0) = Color(sums[k] / double(spp));
-    counts.camera += std::uint64_t(spp) * std::uint64_t(n);
+    counts.camera += std::uint64_t(end_sample - first_sample) * std::uint64_t(n);
   };
 
   auto render_tiles = [&](const tbb::blocked_range<int>& range) {
@@ -241,9 +247,10 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
       }
       result.tile_done[std::size_t(t)] = 1;
       const int done = ++tiles_done;
-      if (options.on_progress) {
+      if (options.on_tile || options.on_progress) {
         std::lock_guard lock(progress_mutex);
-        options.on_progress(static_cast<double>(done) / tile_count);
+        if (options.on_tile) options.on_tile(PixelRegion{x0, y0, x1, y1}, result.image);
+        if (options.on_progress) options.on_progress(static_cast<double>(done) / tile_count);
       }
     }
   };

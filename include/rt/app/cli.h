@@ -1,5 +1,5 @@
 #pragma once
-// The `rt` command line: `rt render`, `rt merge`, `rt info`.
+// The `rt` command line: `rt render`, `rt view`, `rt merge`, `rt info`.
 
 namespace rt {
 

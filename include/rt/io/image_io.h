@@ -43,6 +43,11 @@ struct ImageHeader {
 // for I/O failures.
 void write_image(const Image& image, const std::string& path, const ImageHeader& header = {});
 
+// Writes interleaved 8-bit RGB (rows top to bottom, width * height * 3 bytes) in any 8-bit format
+// write_image writes, through the same encoders: write_rgb8(w, h, to_rgb8(image), path) writes the
+// file write_image(image, path) does. Throws InputError for .exr/.hdr or an unknown extension.
+void write_rgb8(int width, int height, const std::vector<std::uint8_t>& rgb8, const std::string& path);
+
 // Reads any OIIO-readable image as float RGB (extra channels dropped, grey expanded); 8-bit data
 // is mapped to c / 255 without colour conversion. When `header` is given it receives the data
 // window (set only if the file has one that differs from its display window), the display window

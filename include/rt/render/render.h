@@ -22,6 +22,11 @@ struct RenderOptions {
   // Camera rays per pixel, averaged with equal weights (a box filter over the pixel); 1 traces the
   // pixel centre exactly as the seed does, N > 1 stratified jittered samples (pixel_sample_offset).
   int samples_per_pixel = 1;
+  // When >= 0: trace only sample `sample_index` of the samples_per_pixel stratified samples, and
+  // the image holds that sample's colour instead of the average. Summing the images of samples
+  // 0, 1, ... in order (double) and dividing by samples_per_pixel gives the full render bit for bit
+  // (rt view's progressive accumulation).
+  int sample_index = -1;
   RayOffset ray_offset{};
   EffectsOptions effects{};  // what may be skipped (exact pruning by default)
   // Estimate the share of render time per ray kind (RayCounts' tick counters) from one pixel in
@@ -29,6 +34,10 @@ struct RenderOptions {
   bool time_queries = false;
   // Called from worker threads (serialised) with the fraction of tiles done, in [0, 1].
   std::function<void(double)> on_progress;
+  // Called from worker threads (serialised, before on_progress) when a tile is finished, with its
+  // pixels in full-image coordinates and the image being filled (image.at(x - region.x0, y -
+  // region.y0) is pixel (x, y); the tile's pixels are final, other tiles may be in progress).
+  std::function<void(const PixelRegion& tile, const Image& image)> on_tile;
   // When set and it becomes true (e.g. from a signal handler), the render stops within a row of
   // pixels: no tile is started after that and the tile in progress is abandoned.
   const std::atomic<bool>* cancel = nullptr;
