@@ -160,10 +160,13 @@ TEST_CASE("rt view --screenshot shows exactly the pixels rt render writes, in a 
     rt_test::TempDir cwd;
     const rt_test::RtRun rendered = rt_test::run_rt_in(cwd, "render '" + c.scene + "' " + c.options + " -o render.png --quiet");
     REQUIRE(rendered.status == 0);
+    // LeakSanitizer (asan preset) is off for this process: Mesa's DRI driver leaks 240 bytes in
+    // three blocks and is unloaded before the leak check, so no suppression can name it. Every
+    // other check of the sanitizers stays on, and every other test keeps the leak check.
     const rt_test::RtRun viewed = rt_test::run_in(
         cwd, "/usr/bin/env",
-        "DISPLAY=" + server->display() + " '" + std::string(RT_EXECUTABLE) + "' view '" + c.scene + "' " + c.options +
-            " --screenshot view.png --exit-when-done");
+        "DISPLAY=" + server->display() + " LSAN_OPTIONS=detect_leaks=0 '" + std::string(RT_EXECUTABLE) + "' view '" +
+            c.scene + "' " + c.options + " --screenshot view.png --exit-when-done");
     INFO(viewed.err);
     REQUIRE(viewed.status == 0);
     CHECK(viewed.err.find("screenshot view.png") != std::string::npos);
