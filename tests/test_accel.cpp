@@ -375,4 +375,17 @@ TEST_CASE("Embree's compact layout gives the same hits as the default one", "[ac
   CHECK(mismatches == 0);
   CHECK(occlusion_mismatches == 0);
   CHECK(found > rays.size() / 4);
+  // Packets on the compact layout answer as single rays on the usual one.
+  std::vector<rt::Hit> packet_hits(rays.size());
+  std::vector<std::uint8_t> packet_blocked(rays.size());
+  b->intersect_coherent(rays, packet_hits);
+  b->occluded_coherent(rays, packet_blocked);
+  std::size_t packet_mismatches = 0, packet_occlusion_mismatches = 0;
+  for (std::size_t i = 0; i < rays.size(); ++i) {
+    const rt::Hit ha = a->intersect(rays[i]), &hb = packet_hits[i];
+    packet_mismatches += !(ha.primitive == hb.primitive && ha.t == hb.t && ha.u == hb.u && ha.v == hb.v);
+    packet_occlusion_mismatches += a->occluded(rays[i]) != bool(packet_blocked[i]);
+  }
+  CHECK(packet_mismatches == 0);
+  CHECK(packet_occlusion_mismatches == 0);
 }
