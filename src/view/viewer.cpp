@@ -509,6 +509,11 @@ int run_viewer(const Scene& scene, const FlatScene& flat, const Accel& accel, co
       if (options.exit_when_done) break;
     }
     renderer.stop();
+    if (!options.screenshot_path.empty() && !screenshot_taken) {
+      fmt::print(stderr, "rt view: the window was closed before the render was complete; {} not written\n",
+                 options.screenshot_path);
+      status = 1;
+    }
   }
   glfwDestroyWindow(window);
   glfwTerminate();

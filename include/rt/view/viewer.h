@@ -28,7 +28,8 @@ void check_display();
 // with samples_per_pixel > 1, one sample more per pass, averaged. Mouse drag orbits the camera
 // around its target, the wheel zooms, R re-renders, S saves, Q or Esc quits; any camera move
 // restarts the render. When complete, the pixels shown are the ones `rt render` writes for the
-// same camera. Returns the exit status: 0, or 1 when a render or the screenshot failed.
+// same camera. Returns the exit status: 0, or 1 when a render or the screenshot failed or the
+// window was closed before a requested screenshot could be taken.
 int run_viewer(const Scene& scene, const FlatScene& flat, const Accel& accel, const ViewOptions& options);
 
 }  // namespace rt
