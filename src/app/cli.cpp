@@ -108,28 +108,28 @@ int run_cli(int argc, char** argv) {
     command->add_option("--max-depth", args.max_depth, "Reflection depth (0 = no reflections)")
         ->check(CLI::Range(0, kMaxReflectionDepth));
     command->add_option("--spp", args.spp,
-                       "Samples per pixel: 1 = the pixel centre (the seed's camera); N > 1 = stratified jittered "
-                       "samples averaged with a box filter (anti-aliasing), the same image for any thread count")
+                        "Samples per pixel: 1 = the pixel centre (the seed's camera); N > 1 = stratified jittered "
+                        "samples averaged with a box filter (anti-aliasing), the same image for any thread count")
         ->check(CLI::Range(1, 1 << 16))
         ->capture_default_str();
     command->add_option("--accel", args.accel, "Intersector: embree (fast), reference (watertight, double, brute force) or "
-                       "reference-barycentric (the seed's plain solve, double, brute force)")
+                        "reference-barycentric (the seed's plain solve, double, brute force)")
         ->check(CLI::IsMember({"embree", "reference", "reference-barycentric"}))
         ->capture_default_str();
     command->add_option("--embree-robust", args.embree_robust,
-                       "Embree's robust mode: watertight triangle test, conservative boxes")
+                        "Embree's robust mode: watertight triangle test, conservative boxes")
         ->check(CLI::IsMember({"on", "off"}))
         ->capture_default_str();
     command->add_option("--embree-quality", args.embree_quality, "Embree BVH build quality")
         ->check(CLI::IsMember({"low", "medium", "high"}))
         ->capture_default_str();
     command->add_option("--embree-kernel", args.embree_kernel,
-                       "Triangle test inside Embree's BVH: native (Embree's, fastest) or watertight (the reference's "
-                       "double-precision watertight test: no ray slips through a closed mesh, slower)")
+                        "Triangle test inside Embree's BVH: native (Embree's, fastest) or watertight (the reference's "
+                        "double-precision watertight test: no ray slips through a closed mesh, slower)")
         ->check(CLI::IsMember({"native", "watertight"}))
         ->capture_default_str();
     command->add_option("--sphere-tessellation", args.sphere_tessellation,
-                       "Spheres: 0 = exact quadrics, N >= 3 = UV spheres of N slices and N/2 stacks (for comparison)")
+                        "Spheres: 0 = exact quadrics, N >= 3 = UV spheres of N slices and N/2 stacks (for comparison)")
         ->check(CLI::Validator(
             [](std::string& value) {
               const int n = std::atoi(value.c_str());
@@ -138,8 +138,8 @@ int run_cli(int argc, char** argv) {
             "0 or 3..4096"))
         ->capture_default_str();
     command->add_option("--ray-offset", args.ray_offset,
-                       "Self-intersection policy of secondary rays: robust (scale-independent error bound) "
-                       "or fixed:EPS (a constant distance in scene units, e.g. fixed:1e-4)")
+                        "Self-intersection policy of secondary rays: robust (scale-independent error bound) "
+                        "or fixed:EPS (a constant distance in scene units, e.g. fixed:1e-4)")
         ->capture_default_str();
     command->add_option("--threads", args.threads, "Worker threads (0 = all cores)")
         ->check(CLI::Range(0, 1024))
