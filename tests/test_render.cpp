@@ -38,6 +38,19 @@ rt::RenderResult render(const rt::Scene& scene, rt::AccelKind kind, int threads,
   return rt::render_image(scene, flat, *accel, options);
 }
 
+// The built-in default scene at width x height pixels, flattened, with an Embree accel.
+struct SmallDefaultScene {
+  rt::Scene scene;
+  rt::FlatScene flat;
+  std::unique_ptr<rt::Accel> accel;
+
+  SmallDefaultScene(int width, int height) : scene(rt::make_default_scene()) {
+    scene.settings.width = width;
+    scene.settings.height = height;
+    flat = rt::flatten_scene(scene);
+    accel = rt::build_accel(rt::AccelKind::embree, flat);
+  }
+};
 
 }  // namespace
 
@@ -137,11 +150,10 @@ TEST_CASE("rendering with --spp N averages N stratified samples per pixel, --spp
 }
 
 TEST_CASE("render reports progress once per tile, reaching 1", "[render]") {
-  rt::Scene scene = rt::make_default_scene();
-  scene.settings.width = 50;
-  scene.settings.height = 30;
-  const rt::FlatScene flat = rt::flatten_scene(scene);
-  const std::unique_ptr<rt::Accel> accel = rt::build_accel(rt::AccelKind::embree, flat);
+  const SmallDefaultScene small(50, 30);
+  const rt::Scene& scene = small.scene;
+  const rt::FlatScene& flat = small.flat;
+  const rt::Accel* const accel = small.accel.get();
   rt::RenderOptions options;
   options.threads = 2;
   options.tile_size = 16;  // 4 x 2 tiles
@@ -157,11 +169,10 @@ TEST_CASE("render reports progress once per tile, reaching 1", "[render]") {
 }
 
 TEST_CASE("rendering samples one at a time and averaging them in order gives the --spp render bit for bit", "[render]") {
-  rt::Scene scene = rt::make_default_scene();
-  scene.settings.width = 40;
-  scene.settings.height = 30;
-  const rt::FlatScene flat = rt::flatten_scene(scene);
-  const std::unique_ptr<rt::Accel> accel = rt::build_accel(rt::AccelKind::embree, flat);
+  const SmallDefaultScene small(40, 30);
+  const rt::Scene& scene = small.scene;
+  const rt::FlatScene& flat = small.flat;
+  const rt::Accel* const accel = small.accel.get();
   rt::RenderOptions options;
   options.threads = 2;
   options.samples_per_pixel = 5;
@@ -186,11 +197,10 @@ TEST_CASE("rendering samples one at a time and averaging them in order gives the
 }
 
 TEST_CASE("render hands every finished tile to on_tile once, with its final pixels", "[render]") {
-  rt::Scene scene = rt::make_default_scene();
-  scene.settings.width = 50;
-  scene.settings.height = 30;
-  const rt::FlatScene flat = rt::flatten_scene(scene);
-  const std::unique_ptr<rt::Accel> accel = rt::build_accel(rt::AccelKind::embree, flat);
+  const SmallDefaultScene small(50, 30);
+  const rt::Scene& scene = small.scene;
+  const rt::FlatScene& flat = small.flat;
+  const rt::Accel* const accel = small.accel.get();
   rt::RenderOptions options;
   options.threads = 2;
   options.tile_size = 16;

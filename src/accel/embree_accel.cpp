@@ -47,6 +47,22 @@ void fill_ray(const Ray& ray, RTCRay& out) {
   out.flags = 0;
 }
 
+// Lane `lane` of a 16-ray packet, as fill_ray fills a single ray.
+void fill_packet_lane(const Ray& ray, unsigned lane, RTCRay16& out) {
+  out.org_x[lane] = ray.origin.x;
+  out.org_y[lane] = ray.origin.y;
+  out.org_z[lane] = ray.origin.z;
+  out.tnear[lane] = ray.tnear;
+  out.dir_x[lane] = ray.direction.x;
+  out.dir_y[lane] = ray.direction.y;
+  out.dir_z[lane] = ray.direction.z;
+  out.time[lane] = 0.0f;
+  out.tfar[lane] = ray.tfar;
+  out.mask[lane] = 0xFFFFFFFFu;
+  out.id[lane] = lane;
+  out.flags[lane] = 0;
+}
+
 RTCBuildQuality to_embree(EmbreeQuality quality) {
   switch (quality) {
     case EmbreeQuality::low: return RTC_BUILD_QUALITY_LOW;
@@ -429,18 +445,7 @@ void EmbreeAccel::intersect_coherent(std::span<const Ray> rays, std::span<Hit> h
       valid[i] = active ? -1 : 0;
       const Ray& ray = rays[first + (active ? i : 0)];
       best[i] = no_hit_yet(ray);
-      packet.ray.org_x[i] = ray.origin.x;
-      packet.ray.org_y[i] = ray.origin.y;
-      packet.ray.org_z[i] = ray.origin.z;
-      packet.ray.tnear[i] = ray.tnear;
-      packet.ray.dir_x[i] = ray.direction.x;
-      packet.ray.dir_y[i] = ray.direction.y;
-      packet.ray.dir_z[i] = ray.direction.z;
-      packet.ray.time[i] = 0.0f;
-      packet.ray.tfar[i] = ray.tfar;
-      packet.ray.mask[i] = 0xFFFFFFFFu;  // as in fill_ray
-      packet.ray.id[i] = i;
-      packet.ray.flags[i] = 0;
+      fill_packet_lane(ray, i, packet.ray);
       packet.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
       packet.hit.primID[i] = RTC_INVALID_GEOMETRY_ID;
       packet.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
@@ -464,19 +469,7 @@ void EmbreeAccel::occluded_coherent(std::span<const Ray> rays, std::span<std::ui
     alignas(64) int valid[kPacketSize];
     for (unsigned i = 0; i < kPacketSize; ++i) {
       valid[i] = i < lanes ? -1 : 0;
-      const Ray& ray = rays[first + (i < lanes ? i : 0)];
-      packet.org_x[i] = ray.origin.x;
-      packet.org_y[i] = ray.origin.y;
-      packet.org_z[i] = ray.origin.z;
-      packet.tnear[i] = ray.tnear;
-      packet.dir_x[i] = ray.direction.x;
-      packet.dir_y[i] = ray.direction.y;
-      packet.dir_z[i] = ray.direction.z;
-      packet.time[i] = 0.0f;
-      packet.tfar[i] = ray.tfar;
-      packet.mask[i] = 0xFFFFFFFFu;  // as in fill_ray
-      packet.id[i] = i;
-      packet.flags[i] = 0;
+      fill_packet_lane(rays[first + (i < lanes ? i : 0)], i, packet);
     }
     rtcOccluded16(valid, impl_->scene, &context, &packet);
     for (unsigned i = 0; i < lanes; ++i) blocked[first + i] = packet.tfar[i] == -kInfinity ? 1 : 0;

@@ -168,6 +168,16 @@ BatchContext make_batch_context(const RenderArgs& args) {
   return batch;
 }
 
+// The render settings of `args` that every render of a scene shares (rt render, rt view).
+RenderOptions render_options(const RenderArgs& args, const BatchContext& batch) {
+  RenderOptions options;
+  options.threads = batch.threads;
+  options.samples_per_pixel = args.spp;
+  options.ray_offset = batch.ray_offset;
+  options.effects = args.effects;
+  return options;
+}
+
 // The scene at `scene_path` (empty: the default scene) with the command line's image settings and
 // scene options applied, validated.
 Scene load_for_render(const RenderArgs& args, const std::string& scene_path, LoadReport& report) {
@@ -230,11 +240,7 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
   const std::unique_ptr<Accel> accel = build_accel(batch.accel_kind, flat, batch.accel_options);
   const double build_s = seconds_since(phase_start);
 
-  RenderOptions options;
-  options.threads = batch.threads;
-  options.samples_per_pixel = args.spp;
-  options.ray_offset = batch.ray_offset;
-  options.effects = args.effects;
+  RenderOptions options = render_options(args, batch);
   options.region = region;
   if (!args.debug_pixel.empty()) {
     for (const std::string& line : trace_pixel(scene, flat, *accel, options, args.debug_pixel[0], args.debug_pixel[1]))
@@ -416,10 +422,7 @@ int run_view(const ViewArgs& args) {
   warn_about_dropped_triangles(scene, flat, args.render.quiet);
   const std::unique_ptr<Accel> accel = build_accel(batch.accel_kind, flat, batch.accel_options);
 
-  options.render.threads = batch.threads;
-  options.render.samples_per_pixel = args.render.spp;
-  options.render.ray_offset = batch.ray_offset;
-  options.render.effects = args.render.effects;
+  options.render = render_options(args.render, batch);
   options.screenshot_path = args.screenshot;
   options.exit_when_done = args.exit_when_done;
   options.scene_name = args.scene_path.empty() ? "<built-in default>" : fs::path(args.scene_path).filename().string();

@@ -49,20 +49,6 @@ bool keep_encoded_image(tinygltf::Image* image, const int index, std::string*, s
   return true;
 }
 
-std::string percent_decode(const std::string& uri) {
-  std::string out;
-  for (std::size_t i = 0; i < uri.size(); ++i) {
-    if (uri[i] == '%' && i + 2 < uri.size() && std::isxdigit(static_cast<unsigned char>(uri[i + 1])) &&
-        std::isxdigit(static_cast<unsigned char>(uri[i + 2]))) {
-      out += static_cast<char>(std::stoi(uri.substr(i + 1, 2), nullptr, 16));
-      i += 2;
-    } else {
-      out += uri[i];
-    }
-  }
-  return out;
-}
-
 std::string child(const std::string& where, const std::string& key) { return where + "/" + key; }
 std::string child(const std::string& where, std::size_t index) { return where + "/" + std::to_string(index); }
 
@@ -373,7 +359,7 @@ Texture GltfReader::read_texture(const tinygltf::TextureInfo& info, const std::s
   const tinygltf::Image& image = element(gltf_.images, texture.source, "image", child(texture_at, "source"));
   Texture result;
   if (!image.uri.empty()) {  // tinygltf keeps the uri of external files only, not of data: URIs
-    result.path = (directory_ / percent_decode(image.uri)).string();
+    result.path = (directory_ / decode_gltf_uri(image.uri)).string();
   } else if (image.bufferView >= 0) {
     auto [it, inserted] = embedded_.try_emplace(texture.source);
     if (inserted) {
@@ -771,7 +757,7 @@ InputError tinygltf_error(const std::string& path, const std::string& message) {
       for (std::size_t i = 0; i < document["buffers"].size(); ++i) {
         const nlohmann::json& buffer = document["buffers"][i];
         if (buffer.is_object() && buffer.contains("uri") && buffer["uri"].is_string() &&
-            percent_decode(buffer["uri"].get<std::string>()) == uri)
+            decode_gltf_uri(buffer["uri"].get<std::string>()) == uri)
           return InputError(path, child(child("/buffers", i), "uri"), fmt::format("buffer file '{}' not found", uri));
       }
   }
@@ -813,6 +799,20 @@ void check_glb_container(const std::string& path, std::uint64_t size, std::strin
 }
 
 }  // namespace
+
+std::string decode_gltf_uri(const std::string& uri) {
+  std::string out;
+  for (std::size_t i = 0; i < uri.size(); ++i) {
+    if (uri[i] == '%' && i + 2 < uri.size() && std::isxdigit(static_cast<unsigned char>(uri[i + 1])) &&
+        std::isxdigit(static_cast<unsigned char>(uri[i + 2]))) {
+      out += static_cast<char>(std::stoi(uri.substr(i + 1, 2), nullptr, 16));
+      i += 2;
+    } else {
+      out += uri[i];
+    }
+  }
+  return out;
+}
 
 Scene load_gltf_scene(const std::string& path, const GltfOptions& options, LoadReport* report) {
   std::error_code error;

@@ -150,8 +150,8 @@ class ProgressiveRenderer {
     std::vector<Vec3d> sums(spp > 1 ? std::size_t(width) * std::size_t(height) : 0, Vec3d(0.0));
     std::uint64_t rays = 0;
     double render_seconds = 0.0;
+    options.samples_per_pixel = spp;
     for (int s = 0; s < spp; ++s) {
-      options.samples_per_pixel = spp;
       options.sample_index = spp > 1 ? s : -1;
       options.on_tile = [&](const PixelRegion& tile, const Image& image) {
         std::lock_guard lock(frame_.mutex);

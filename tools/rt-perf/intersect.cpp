@@ -97,6 +97,12 @@ std::vector<std::size_t> spread_indices(std::size_t size, std::size_t count) {
   return indices;
 }
 
+std::string sig3(double value) {
+  if (value == 0.0 || !std::isfinite(value)) return fmt::format("{}", value);
+  const int decimals = std::clamp(2 - static_cast<int>(std::floor(std::log10(std::abs(value)))), 0, 9);
+  return fmt::format("{:.{}f}", value, decimals);
+}
+
 double Timing::median_seconds() const {
   if (seconds.empty()) return 0.0;
   std::vector<double> sorted = seconds;
@@ -257,13 +263,6 @@ std::string csv_field(const std::string& text) {
   std::string quoted = "\"";
   for (char c : text) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
   return quoted + "\"";
-}
-
-// Three significant digits, never in exponent form.
-std::string sig3(double value) {
-  if (value == 0.0 || !std::isfinite(value)) return fmt::format("{}", value);
-  const int decimals = std::clamp(2 - static_cast<int>(std::floor(std::log10(std::abs(value)))), 0, 9);
-  return fmt::format("{:.{}f}", value, decimals);
 }
 
 std::string mib(std::size_t bytes) { return sig3(double(bytes) / (1024.0 * 1024.0)); }

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <functional>
 #include <span>
+#include <string>
 #include <vector>
 
 #include <CLI/CLI.hpp>
@@ -38,6 +39,10 @@ std::vector<Ray> make_incoherent_rays(const Bounds3d& bounds, std::size_t count,
 
 // Every `rays.size() / count`-th ray, spread evenly over the set (all of them when count >= size).
 std::vector<std::size_t> spread_indices(std::size_t size, std::size_t count);
+
+// `value` with three significant digits (at most nine decimals), never in exponent form: "0.00170",
+// "12.8", "4262". The tables of rt-perf's subcommands.
+std::string sig3(double value);
 
 // Wall-clock seconds of the timed runs and the throughput they give.
 struct Timing {

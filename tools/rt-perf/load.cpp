@@ -12,6 +12,7 @@
 #include <fmt/format.h>
 
 #include "rt/core/error.h"
+#include "rt/io/load_gltf.h"
 #include "rt/io/load_scene.h"
 
 namespace rt::perf {
@@ -30,21 +31,6 @@ std::string lower(std::string text) {
   return text;
 }
 
-// A URI's path with %XX escapes decoded (glTF URIs are RFC 3986 references).
-std::string decode_uri(const std::string& uri) {
-  std::string path;
-  for (std::size_t i = 0; i < uri.size(); ++i) {
-    if (uri[i] == '%' && i + 2 < uri.size() && std::isxdigit(static_cast<unsigned char>(uri[i + 1])) &&
-        std::isxdigit(static_cast<unsigned char>(uri[i + 2]))) {
-      path += static_cast<char>(std::stoi(uri.substr(i + 1, 2), nullptr, 16));
-      i += 2;
-    } else {
-      path += uri[i];
-    }
-  }
-  return path;
-}
-
 // The external files a .gltf's "buffers" and "images" name, each once, in order; none when the
 // JSON cannot be parsed (the load then fails and reports why).
 std::vector<std::string> gltf_external_files(const std::string& path, std::size_t& buffers, std::size_t& images) {
@@ -60,7 +46,7 @@ std::vector<std::string> gltf_external_files(const std::string& path, std::size_
       if (!entry.is_object() || !entry.contains("uri") || !entry["uri"].is_string()) continue;
       const std::string uri = entry["uri"].get<std::string>();
       if (uri.starts_with("data:")) continue;
-      const fs::path file = fs::path(path).parent_path() / decode_uri(uri);
+      const fs::path file = fs::path(path).parent_path() / decode_gltf_uri(uri);
       std::error_code error;
       if (!fs::is_regular_file(file, error) || !seen.insert(file.string()).second) continue;
       files.push_back(file.string());
@@ -85,14 +71,6 @@ void read_whole_file(const std::string& path, std::vector<char>& bytes) {
 double mb_per_second(std::uint64_t bytes, const Timing& timing) {
   const double median = timing.median_seconds();
   return median > 0.0 ? double(bytes) / median * 1e-6 : 0.0;
-}
-
-// Three significant digits, all digits before the point when there are more; no exponent:
-// "0.00170", "12.8", "4262".
-std::string sig3(double value) {
-  if (!(value != 0.0) || !std::isfinite(value)) return fmt::format("{}", value);
-  const int digits_before_point = static_cast<int>(std::floor(std::log10(std::abs(value)))) + 1;
-  return fmt::format("{:.{}f}", value, std::max(0, 3 - digits_before_point));
 }
 
 struct Options {

@@ -18,6 +18,10 @@ struct GltfOptions {
                              // the first perspective camera met walking the scene's nodes
 };
 
+// A glTF buffer or image URI (an RFC 3986 relative reference) as a file path relative to the
+// .gltf's directory: %XX escapes decoded, nothing else changed.
+std::string decode_gltf_uri(const std::string& uri);
+
 // Loads the glTF file at `path` (.glb when it starts with the binary magic "glTF") into a scene
 // graph: one node per glTF node under an identity root, one model per triangle primitive.
 // Anything skipped or substituted (primitive modes, unsampled textures, a missing camera or
