@@ -45,6 +45,13 @@ struct Material {
   // zero: no reflection ray.
   std::optional<Color> reflective;
   Texture diffuse_texture;  // multiplies `diffuse` and `ambient` at each hit
+  // An emitter (OBJ/MTL Ke, glTF emissive, native "emitter": true): `emission` times
+  // `emission_texture` is radiance (linear RGB) leaving the front side of each triangle (counter-
+  // clockwise seen from the front); rays see it from that side only, and it lights the scene as an
+  // area light (rt/render/area_lights.h). Otherwise `emission` is the seed's self-emission: added
+  // at every hit from either side, lighting nothing (CSE167x .test, native scenes by default).
+  bool emits_light = false;
+  Texture emission_texture;  // multiplies `emission` of an emitter at each point it is evaluated
 };
 
 // A light in world space. position.w == 0: directional, (x, y, z) is the direction towards the
