@@ -100,6 +100,18 @@ int run_cli(int argc, char** argv) {
                         "Approximation, off by default: drop a light at a hit when its term is below this "
                         "(linear RGB); error <= value x lights x path weight bound")
         ->check(CLI::Range(0.0, 1.0));
+    command->add_option("--light-samples", effects.light_samples,
+                        "Area lights (emissive surfaces): shadow-ray samples per emitter per hit, stratified; more "
+                        "gives smoother penumbrae at proportional cost")
+        ->check(CLI::Range(1, EffectsOptions::kMaxLightSamples))
+        ->capture_default_str();
+    command->add_option_function<std::string>(
+              "--light-sampling",
+              [&effects](const std::string& text) { effects.light_sampling = parse_light_sampling(text); },
+              "How an area-light sample picks its point: auto (by solid angle where the triangle looks large, "
+              "else by area), area or solid-angle")
+        ->check(CLI::IsMember({"auto", "area", "solid-angle"}))
+        ->default_str("auto");
   };
   // The settings of an image, shared by rt render and rt view.
   const auto add_image_options = [](CLI::App* command, RenderArgs& args) {

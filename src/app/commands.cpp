@@ -115,10 +115,11 @@ std::string partial_output_path(const std::string& output) {
 // Threads, pruning, statistics and output names cannot change a pixel and are left out.
 std::string settings_text(const RenderArgs& args) {
   return fmt::format("spp={} accel={} embree-robust={} embree-quality={} embree-kernel={} sphere-tessellation={} "
-                     "ray-offset={} min-throughput={} min-light={}",
+                     "ray-offset={} min-throughput={} min-light={} light-samples={} light-sampling={}",
                      args.spp, args.accel, args.embree_robust, args.embree_quality, args.embree_kernel,
                      args.sphere_tessellation, args.ray_offset, args.effects.min_throughput,
-                     args.effects.min_light_contribution);
+                     args.effects.min_light_contribution, args.effects.light_samples,
+                     to_string(args.effects.light_sampling));
 }
 
 // "scene.png" -> "scene.tile-2-of-8.exr" / "scene.crop-0-0-64-48.exr": a region's default name.

@@ -14,7 +14,10 @@ std::uint64_t at(const std::vector<std::uint64_t>& values, std::size_t index) {
 
 // One budget line: rays traced, hits (when meaningful) and, when timed, share of the loop's ticks
 // and the same share of the render's wall-clock seconds.
+// `group` is the ray_budget JSON key the row goes under, `index` its light, emitter or depth.
 struct BudgetRow {
+  enum class Group { camera, shadow, area_light, reflection } group;
+  std::size_t index = 0;
   std::string kind;
   std::uint64_t rays = 0;
   std::optional<std::uint64_t> hits;
@@ -22,15 +25,21 @@ struct BudgetRow {
 };
 
 std::vector<BudgetRow> budget_rows(const RenderResult& result, const Scene& scene) {
+  using Group = BudgetRow::Group;
   const RayCounts& rays = result.rays;
   std::vector<BudgetRow> rows;
-  rows.push_back({"camera", rays.camera, at(rays.hits_per_depth, 0), double(at(rays.intersect_ticks_per_depth, 0))});
+  rows.push_back({Group::camera, 0, "camera", rays.camera, at(rays.hits_per_depth, 0),
+                  double(at(rays.intersect_ticks_per_depth, 0))});
   for (std::size_t j = 0; j < scene.lights.size(); ++j)
-    rows.push_back({fmt::format("shadow light {}", j), at(rays.shadow_per_light, j), std::nullopt,
+    rows.push_back({Group::shadow, j, fmt::format("shadow light {}", j), at(rays.shadow_per_light, j), std::nullopt,
                     double(at(rays.shadow_ticks_per_light, j))});
+  const std::size_t emitters = result.plan.area_lights ? result.plan.area_lights->emitters.size() : 0;
+  for (std::size_t e = 0; e < emitters; ++e)
+    rows.push_back({Group::area_light, e, fmt::format("area light {}", e), at(rays.area_light_per_emitter, e),
+                    std::nullopt, double(at(rays.area_light_ticks_per_emitter, e))});
   for (std::size_t d = 1; d < std::max(rays.reflection_per_depth.size(), std::size_t(1)); ++d)
-    rows.push_back({fmt::format("reflection depth {}", d), at(rays.reflection_per_depth, d), at(rays.hits_per_depth, d),
-                    double(at(rays.intersect_ticks_per_depth, d))});
+    rows.push_back({Group::reflection, d, fmt::format("reflection depth {}", d), at(rays.reflection_per_depth, d),
+                    at(rays.hits_per_depth, d), double(at(rays.intersect_ticks_per_depth, d))});
   return rows;
 }
 
@@ -64,6 +73,23 @@ nlohmann::ordered_json effects_json(const EffectsPlan& plan, const Scene& scene)
   json["reflections"] = plan.reflections;
   json["useful_depth"] = plan.useful_depth;
   json["materials"] = {{"total", plan.materials.size()}, {"reflective", reflective}, {"specular", specular}};
+  if (plan.area_lights) {
+    nlohmann::ordered_json emitters = nlohmann::ordered_json::array();
+    for (std::size_t e = 0; e < plan.emitters.size(); ++e) {
+      const Emitter& emitter = plan.area_lights->emitters[e];
+      emitters.push_back({{"emitter", e},
+                          {"material", scene.materials[emitter.material].name},
+                          {"triangles", emitter.triangles.size()},
+                          {"area", emitter.area},
+                          {"power", {emitter.power.r, emitter.power.g, emitter.power.b}},
+                          {"planar", emitter.planar},
+                          {"contributes", plan.emitters[e].contributes},
+                          {"why", plan.emitters[e].why}});
+    }
+    json["area_lights"] = {{"samples_per_hit", plan.options.light_samples},
+                           {"sampling", std::string(to_string(plan.options.light_sampling))},
+                           {"emitters", emitters}};
+  }
   json["approximations"] = {{"min_throughput", plan.options.min_throughput},
                             {"min_light_contribution", plan.options.min_light_contribution},
                             {"error_bound", plan.approximation_error_bound()}};
@@ -82,24 +108,26 @@ nlohmann::ordered_json ray_budget_json(const RenderResult& result, const Scene& 
     }
     return json;
   };
-  const std::vector<BudgetRow> rows = budget_rows(result, scene);
   nlohmann::ordered_json json;
-  json["camera"] = row_json(rows[0]);
-  nlohmann::ordered_json shadow = nlohmann::ordered_json::array(), reflection = nlohmann::ordered_json::array();
-  double query_ticks = rows[0].ticks;
-  for (std::size_t j = 0; j < scene.lights.size(); ++j) {
-    nlohmann::ordered_json entry = {{"light", j}};
-    entry.update(row_json(rows[1 + j]));
-    shadow.push_back(entry);
-    query_ticks += rows[1 + j].ticks;
-  }
-  for (std::size_t r = 1 + scene.lights.size(); r < rows.size(); ++r) {
-    nlohmann::ordered_json entry = {{"depth", r - scene.lights.size()}};
-    entry.update(row_json(rows[r]));
-    reflection.push_back(entry);
-    query_ticks += rows[r].ticks;
+  nlohmann::ordered_json shadow = nlohmann::ordered_json::array(), area = nlohmann::ordered_json::array(),
+                         reflection = nlohmann::ordered_json::array();
+  const auto append = [&](nlohmann::ordered_json& list, const char* key, const BudgetRow& row) {
+    nlohmann::ordered_json entry = {{key, row.index}};
+    entry.update(row_json(row));
+    list.push_back(entry);
+  };
+  double query_ticks = 0.0;
+  for (const BudgetRow& row : budget_rows(result, scene)) {
+    query_ticks += row.ticks;
+    switch (row.group) {
+      case BudgetRow::Group::camera: json["camera"] = row_json(row); break;
+      case BudgetRow::Group::shadow: append(shadow, "light", row); break;
+      case BudgetRow::Group::area_light: append(area, "emitter", row); break;
+      case BudgetRow::Group::reflection: append(reflection, "depth", row); break;
+    }
   }
   json["shadow"] = shadow;
+  if (!area.empty()) json["area_light"] = area;
   json["reflection"] = reflection;
   if (timed) {
     const double rest = std::max(0.0, double(rays.loop_ticks) - query_ticks);

@@ -392,7 +392,7 @@ Texture GltfReader::read_texture(const tinygltf::TextureInfo& info, const std::s
     std::string reason;
     readable->second = texture_is_readable(result, reason);
     if (!readable->second)
-      notices_.push_back(fmt::format("{}: {}: texture image cannot be read ({}); using the base colour factor alone",
+      notices_.push_back(fmt::format("{}: {}: texture image cannot be read ({}); using the factor alone",
                                      path_, child("/images", static_cast<std::size_t>(texture.source)),
                                      image.uri.empty() ? reason : image.uri + ": " + reason));
   }
@@ -448,18 +448,20 @@ Material GltfReader::read_material(int index) {
   Vec3d emission(source.emissiveFactor[0], source.emissiveFactor[1], source.emissiveFactor[2]);
   if (auto it = source.extensions.find("KHR_materials_emissive_strength"); it != source.extensions.end()) {
     const tinygltf::Value& strength = it->second.Get("emissiveStrength");
-    if (strength.IsNumber()) emission *= strength.GetNumberAsDouble();
-  }
-  if (source.emissiveTexture.index >= 0) {
-    // Not sampled: its mean (sRGB-decoded) modulates the factor.
-    const Texture texture = read_texture(source.emissiveTexture, child(at, "emissiveTexture"));
-    const auto mean = texture.empty() ? std::nullopt : texture_mean(texture);
-    emission *= mean ? Vec3d(glm::pow(Vec3f(*mean), Vec3f(2.2f))) : Vec3d(0.0);
-    count("emissive textures replaced by their mean colour");
+    if (strength.IsNumber()) {
+      if (!(strength.GetNumberAsDouble() >= 0.0))
+        fail(child(at, "extensions/KHR_materials_emissive_strength/emissiveStrength"), "must be >= 0");
+      emission *= strength.GetNumberAsDouble();
+    }
   }
   if (glm::any(glm::lessThan(emission, Vec3d(0.0))) || glm::any(glm::lessThan(base, Vec3d(0.0))))
     fail(at, "colour factors must be >= 0");
+  // Emission is radiance leaving the front side (docs/area-lights.md): the material is an area light,
+  // its texture (sRGB, sampled per hit and per light sample) modulating the factor.
   material.emission = Color(emission);
+  material.emits_light = material.emission != Color(0.0f);
+  if (material.emits_light && source.emissiveTexture.index >= 0)
+    material.emission_texture = read_texture(source.emissiveTexture, child(at, "emissiveTexture"));
   return material;
 }
 
@@ -640,7 +642,7 @@ void GltfReader::read_lights(const std::vector<Placed>& placed, Scene& scene) {
     }
     scene.lights.push_back(light);
   }
-  if (scene.lights.empty()) {
+  if (scene.lights.empty() && !has_emitters(scene)) {
     Light headlight;
     headlight.position = Vec4d(scene.camera.eye, 1.0);
     scene.lights.push_back(headlight);
@@ -714,10 +716,10 @@ Scene GltfReader::read() {
   if (lo_.x <= hi_.x && std::max(max_abs_coordinate(lo_), max_abs_coordinate(hi_)) > kMaxWorldCoordinate)
     fail("/nodes", fmt::format("the geometry extends from ({:g}, {:g}, {:g}) to ({:g}, {:g}, {:g}), beyond +-{:g} in "
                                "world space", lo_.x, lo_.y, lo_.z, hi_.x, hi_.y, hi_.z, kMaxWorldCoordinate));
-  read_camera(placed, scene);
-  read_lights(placed, scene);
   scene.materials = std::move(materials_);
   if (scene.materials.empty()) scene.materials.push_back(read_material(-1));
+  read_camera(placed, scene);
+  read_lights(placed, scene);  // after the materials: emissive ones replace the headlight
   for (const auto& [what, n] : skipped_) notices_.push_back(fmt::format("{}: {} ({}x)", path_, what, n));
   scene.notices = std::move(notices_);
   return scene;

@@ -138,6 +138,10 @@ Material to_material(const tinyobj::material_t& m, const fs::path& directory) {
   material.diffuse = color_of(m.diffuse);
   material.specular = color_of(m.specular);
   material.emission = color_of(m.emission);
+  // Ke is emitted radiance: a material with a non-black Ke is an area light (docs/area-lights.md).
+  material.emits_light = material.emission != Color(0.0f);
+  if (material.emits_light && !m.emissive_texname.empty())
+    material.emission_texture.path = (directory / m.emissive_texname).lexically_normal().string();
   material.shininess = static_cast<float>(m.shininess);
   // illum 3-7 all trace a mirror reflection weighted by Ks; the transparency and refraction of
   // 4, 6 and 7 are not supported, so glass renders as an opaque mirror.
@@ -247,13 +251,21 @@ Scene load_obj_scene(const std::string& path, LoadReport* report, const ObjLoadO
                                        material.name, material.diffuse_texture.path, reason));
       material.diffuse_texture = {};
     }
+    if (!material.emission_texture.empty() && !texture_is_readable(material.emission_texture, reason)) {
+      r.warnings.push_back(fmt::format("{}: material '{}': map_Ke '{}' cannot be read ({}); using Ke alone", path,
+                                       material.name, material.emission_texture.path, reason));
+      material.emission_texture = {};
+    }
   }
   r.bounds = world_bounds(scene);
   r.view = choose_view(scene);
   r.camera_framed = true;
   scene.camera = frame_bounds(r.bounds, double(scene.settings.width) / scene.settings.height, r.view);
-  scene.lights = {make_headlight(scene.camera)};
-  r.headlight_added = true;
+  // A file whose own surfaces emit is lit by them; otherwise a headlight shows the model.
+  if (!has_emitters(scene)) {
+    scene.lights = {make_headlight(scene.camera)};
+    r.headlight_added = true;
+  }
   validate_scene(scene);
   return scene;
 }

@@ -166,13 +166,19 @@ Camera SceneReader::read_camera(const json& value, const std::string& where) con
 
 Material SceneReader::read_material(const json& value, const std::string& where, const std::string& name) const {
   require_object(value, where);
-  check_keys(value, where, {"ambient", "diffuse", "specular", "emission", "shininess"});
+  check_keys(value, where, {"ambient", "diffuse", "specular", "emission", "shininess", "emitter"});
   Material material;
   material.name = name;
   if (value.contains("ambient")) material.ambient = read_color(value["ambient"], child(where, "ambient"));
   if (value.contains("diffuse")) material.diffuse = read_color(value["diffuse"], child(where, "diffuse"));
   if (value.contains("specular")) material.specular = read_color(value["specular"], child(where, "specular"));
   if (value.contains("emission")) material.emission = read_color(value["emission"], child(where, "emission"));
+  if (value.contains("emitter")) {
+    // true: `emission` is radiance leaving the front side, and an area light (docs/area-lights.md).
+    if (!value["emitter"].is_boolean())
+      fail(child(where, "emitter"), fmt::format("expected true or false, got {}", type_name(value["emitter"])));
+    material.emits_light = value["emitter"].get<bool>();
+  }
   if (value.contains("shininess")) {
     const double shininess = read_number(value["shininess"], child(where, "shininess"));
     if (shininess < 0) fail(child(where, "shininess"), "shininess must be >= 0");

@@ -60,6 +60,8 @@ void check_mtl_numbers(const std::string& path, std::istream& in) {
         throw InputError(path, std::to_string(number), fmt::format("'{}': '{}' is not a number", keyword, token));
       if (!std::isfinite(value))
         throw InputError(path, std::to_string(number), fmt::format("'{}': '{}' is not finite", keyword, token));
+      if (keyword == "Ke" && value < 0.0)  // emitted radiance; Ka, Kd, Ks are left as tinyobj reads them
+        throw InputError(path, std::to_string(number), fmt::format("'Ke': '{}' is negative (emission must be >= 0)", token));
     }
   }
 }

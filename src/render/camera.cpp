@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 
 #include "rt/core/error.h"
+#include "rt/render/sampling.h"
 
 namespace rt {
 
@@ -36,21 +37,6 @@ Vec3d camera_direction(const CameraFrame& frame, double x, double y) {
 Ray ray_through_pixel(const CameraFrame& frame, int i, int j) {
   return ray_through_pixel_sample(frame, i, j, 0, 1);
 }
-
-namespace {
-
-// splitmix64's finaliser (Steele, Lea, Flood, "Fast Splittable Pseudorandom Number Generators",
-// OOPSLA 2014): a bijective mix whose outputs pass BigCrush for consecutive inputs.
-std::uint64_t mix64(std::uint64_t z) {
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  return z ^ (z >> 31);
-}
-
-// The top 53 bits of `bits` as a double in [0, 1).
-double unit_double(std::uint64_t bits) { return static_cast<double>(bits >> 11) * 0x1p-53; }
-
-}  // namespace
 
 Vec2d pixel_sample_offset(int i, int j, int index, int count) {
   if (count <= 1) return Vec2d(0.5);

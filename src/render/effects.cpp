@@ -54,6 +54,12 @@ std::string to_string(SkipRule rule) {
     case SkipRule::black_reflection: return "black_reflection";
     case SkipRule::dim_light: return "dim_light";
     case SkipRule::low_throughput: return "low_throughput";
+    case SkipRule::emitter_off: return "emitter_off";
+    case SkipRule::unlit_material: return "unlit_material";
+    case SkipRule::emitter_behind: return "emitter_behind";
+    case SkipRule::emitter_below_horizon: return "emitter_below_horizon";
+    case SkipRule::sample_zero: return "sample_zero";
+    case SkipRule::sample_on_surface: return "sample_on_surface";
   }
   return "?";
 }
@@ -75,6 +81,47 @@ bool is_convex_for_certain(const FlatScene& flat) {
   return true;
 }
 
+namespace {
+
+// The area-light part of plan_effects: the emitters and what is done with each. Area lights carry
+// no ambient term (docs/area-lights.md), so an emitter lights only diffuse and specular colours.
+void plan_area_lights(const Scene& scene, const FlatScene& flat, bool any_diffuse_or_specular, EffectsPlan& plan) {
+  if (std::none_of(scene.materials.begin(), scene.materials.end(), [](const Material& m) { return m.emits_light; }))
+    return;
+  auto lights = std::make_shared<const AreaLights>(collect_area_lights(scene, flat));
+  if (lights->empty()) return;
+  const EffectsOptions& options = plan.options;
+  for (const Emitter& emitter : lights->emitters) {
+    EmitterPlan ep;
+    const std::string size =
+        fmt::format("'{}': {} triangle{}, area {:.4g}, power ({:.4g}, {:.4g}, {:.4g}){}",
+                    scene.materials[emitter.material].name, emitter.triangles.size(),
+                    emitter.triangles.size() == 1 ? "" : "s", emitter.area, emitter.power.r, emitter.power.g,
+                    emitter.power.b, scene.materials[emitter.material].emission_texture.empty() ? "" : " times its texture");
+    if (!any_diffuse_or_specular && options.prune) {
+      ep.contributes = false;
+      ep.why = size + "; off: no material has a diffuse or specular colour";
+    } else {
+      plan.shadows = true;
+      std::vector<std::string> rules;
+      if (options.prune) {
+        rules.push_back(emitter.planar ? "none behind its plane" : "none where a triangle's back faces the point");
+        rules.push_back("none where it is below the horizon or the term is zero");
+      }
+      ep.why = fmt::format("{}; {} sample{} per hit ({}){}", size, options.light_samples,
+                           options.light_samples == 1 ? "" : "s",
+                           options.light_sampling == LightSampling::automatic ? "by solid angle where it pays, else by area"
+                           : options.light_sampling == LightSampling::area    ? "by area"
+                                                                              : "by solid angle",
+                           rules.empty() ? "" : fmt::format(", {}", fmt::join(rules, "; ")));
+    }
+    plan.emitters.push_back(ep);
+  }
+  plan.area_lights = std::move(lights);
+}
+
+}  // namespace
+
 double EffectsPlan::approximation_error_bound() const {
   double bound = 0.0;
   if (options.min_throughput > 0.0) bound += options.min_throughput * radiance_bound;
@@ -91,7 +138,7 @@ EffectsPlan plan_effects(const Scene& scene, const FlatScene& flat, const RayOff
 
   // Materials: which terms are non-zero. Texels only scale diffuse and ambient and are assumed
   // to lie in [0, 1] (8-bit and 16-bit images decode to that range) for the bounds below.
-  bool any_lit_term = false, any_reflection = false;
+  bool any_lit_term = false, any_reflection = false, any_diffuse_or_specular = false;
   double largest_reflection = 0.0, largest_emission = 0.0, largest_lit_sum = 0.0;
   for (const Material& m : scene.materials) {
     MaterialPlan mp;
@@ -100,6 +147,7 @@ EffectsPlan plan_effects(const Scene& scene, const FlatScene& flat, const RayOff
     mp.specular = !is_black(m.specular);
     mp.reflection = !is_black(reflection_weight(m)) && scene.settings.max_depth > 0;
     any_lit_term = any_lit_term || mp.ambient || mp.diffuse || mp.specular;
+    any_diffuse_or_specular = any_diffuse_or_specular || mp.diffuse || mp.specular;
     any_reflection = any_reflection || mp.reflection;
     largest_reflection = std::max(largest_reflection, max_channel(reflection_weight(m)));
     largest_emission = std::max(largest_emission, max_channel(m.emission));
@@ -158,6 +206,8 @@ EffectsPlan plan_effects(const Scene& scene, const FlatScene& flat, const RayOff
   // Geometry facing no light at all and no reflections would still need shadow rays for lights at
   // reflected hits, so `shadows` stays per light; it is false when no light contributes.
 
+  plan_area_lights(scene, flat, any_diffuse_or_specular, plan);
+
   // Error bounds of the approximations. Radiance of a hit at depth d <= D: emission + lights *
   // (ambient + diffuse + specular) + r * radiance at depth d + 1, or the background on a miss.
   const double local = largest_emission + largest_light * largest_lit_sum;
@@ -165,7 +215,7 @@ EffectsPlan plan_effects(const Scene& scene, const FlatScene& flat, const RayOff
   double radiance = std::max(background, local), weight = 1.0, power = 1.0;
   for (int d = plan.useful_depth - 1; d >= 0; --d) radiance = std::max(background, local + largest_reflection * radiance);
   for (int d = 1; d <= plan.useful_depth; ++d) weight += (power *= largest_reflection);
-  plan.radiance_bound = radiance;
+  plan.radiance_bound = plan.area_lights ? std::numeric_limits<double>::infinity() : radiance;
   plan.path_weight_bound = weight;
   return plan;
 }
@@ -176,8 +226,11 @@ std::vector<std::string> describe_plan(const EffectsPlan& plan, const Scene& sce
                                                                       : "off (--no-prune): every ray is traced"));
   for (std::size_t j = 0; j < plan.lights.size(); ++j)
     lines.push_back(fmt::format("light {:<5} {}", j, plan.lights[j].why));
+  for (std::size_t e = 0; e < plan.emitters.size(); ++e)
+    lines.push_back(fmt::format("area {:<6} {}", e, plan.emitters[e].why));
   if (!plan.shadows)
-    lines.push_back(fmt::format("shadows     off: {}", plan.lights.empty() ? "no lights" : "no light contributes"));
+    lines.push_back(fmt::format("shadows     off: {}", plan.lights.empty() && plan.emitters.empty() ? "no lights"
+                                                                                                      : "no light contributes"));
   lines.push_back(fmt::format("convex      {}", plan.convex_why));
   if (plan.reflections) {
     std::size_t reflective = 0;

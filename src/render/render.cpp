@@ -125,7 +125,9 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   // pixels' loop ticks.
   constexpr int kBlock = 4;
   constexpr int kBlockPixels = kBlock * kBlock;
+  // Light slots: the scene's lights, then the emitters (RayCounts::add_shadow_query).
   const std::size_t light_count = scene.lights.size();
+  const std::size_t slot_count = light_count + (result.plan.area_lights ? result.plan.area_lights->emitters.size() : 0);
   const auto render_block = [&](int bx0, int by0, int bx1, int by1, ThreadState& state) {
     RayCounts& counts = state.counts;
     PendingShading& pending = state.pending;
@@ -164,19 +166,20 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
       pending.clear();
       for (int k = 0; k < n; ++k) {
         if (timed[k]) start = __rdtsc();
-        shade_camera_hit(timed[k] ? timed_context : context, rays[k], hits[k], counts, pending);
+        shade_camera_hit(timed[k] ? timed_context : context, rays[k], hits[k], pixel_path_seed(xs[k], ys[k], s), counts,
+                         pending);
         if (timed[k]) ticks[k] += __rdtsc() - start;
       }
 
       // Shadow rays light by light, so that a packet goes towards one light (a single light: as recorded).
       const std::size_t shadow_count = pending.shadow_rays.size();
       state.blocked.assign(shadow_count, 0);
-      if (shadow_count > 0 && light_count == 1) {
+      if (shadow_count > 0 && slot_count == 1) {
         start = options.time_queries ? __rdtsc() : 0;
         accel.occluded_coherent(pending.shadow_rays, state.blocked);
       } else if (shadow_count > 0) {
         state.by_light.clear();
-        for (std::size_t light = 0; light < light_count; ++light)
+        for (std::size_t light = 0; light < slot_count; ++light)
           for (std::size_t i = 0; i < shadow_count; ++i)
             if (pending.shadow_lights[i] == light) state.by_light.push_back(static_cast<std::uint32_t>(i));
         state.grouped_rays.resize(shadow_count);
@@ -201,9 +204,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
           for (std::uint32_t t = p.first_term; t < p.first_term + p.term_count; ++t) {
             const std::uint32_t query = pending.terms[t].query;
             if (query == PendingShading::kNoQuery) continue;
-            const std::uint32_t light = pending.shadow_lights[query];
-            if (counts.shadow_ticks_per_light.size() <= light) counts.shadow_ticks_per_light.resize(light + 1, 0);
-            counts.shadow_ticks_per_light[light] += share;
+            counts.add_shadow_ticks(light_count, pending.shadow_lights[query], share);
             ticks[k] += share;
           }
         }
@@ -295,7 +296,8 @@ std::vector<std::string> trace_pixel(const Scene& scene, const FlatScene& flat, 
     lines.push_back(fmt::format("pixel ({}, {}) sample {} of {} at ({:.6g}, {:.6g}) in the pixel:", x, y, s + 1, spp,
                                 offset.x, offset.y));
     const Color c = find_color(context, spp == 1 ? ray_through_pixel(frame, x, y)
-                                                 : ray_through_pixel_sample(frame, x, y, s, spp), 0, counts);
+                                                 : ray_through_pixel_sample(frame, x, y, s, spp), 0, counts,
+                               Vec3d(1.0), pixel_path_seed(x, y, s));
     const bool finite = std::isfinite(c.r) && std::isfinite(c.g) && std::isfinite(c.b);
     if (!finite) lines.push_back("  NOT FINITE: the render replaces this sample by black");
     sum += finite ? Vec3d(c) : Vec3d(0.0);

@@ -2,12 +2,15 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <numeric>
 #include <optional>
 
 #include <x86intrin.h>
 
 #include <fmt/format.h>
+
+#include "rt/render/sampling.h"
 
 namespace rt {
 
@@ -57,25 +60,56 @@ RayCounts& RayCounts::operator+=(const RayCounts& other) {
   camera += other.camera;
   shadow += other.shadow;
   reflection += other.reflection;
+  area_light += other.area_light;
   add_all(shadow_per_light, other.shadow_per_light);
+  add_all(area_light_per_emitter, other.area_light_per_emitter);
   add_all(reflection_per_depth, other.reflection_per_depth);
   add_all(hits_per_depth, other.hits_per_depth);
   for (int r = 0; r < kSkipRuleCount; ++r) skipped[r] += other.skipped[r];
   add_all(intersect_ticks_per_depth, other.intersect_ticks_per_depth);
   add_all(shadow_ticks_per_light, other.shadow_ticks_per_light);
+  add_all(area_light_ticks_per_emitter, other.area_light_ticks_per_emitter);
   loop_ticks += other.loop_ticks;
   return *this;
 }
 
+void RayCounts::add_shadow_query(std::size_t light_count, std::size_t slot) {
+  if (slot < light_count) {
+    ++shadow;
+    add_at(shadow_per_light, slot);
+  } else {
+    ++area_light;
+    add_at(area_light_per_emitter, slot - light_count);
+  }
+}
+
+void RayCounts::add_shadow_ticks(std::size_t light_count, std::size_t slot, std::uint64_t ticks) {
+  if (slot < light_count)
+    add_at(shadow_ticks_per_light, slot, ticks);
+  else
+    add_at(area_light_ticks_per_emitter, slot - light_count, ticks);
+}
+
+std::uint64_t pixel_path_seed(int x, int y, int sample) {
+  return mix64((std::uint64_t(std::uint32_t(y)) << 32 | std::uint32_t(x)) ^ mix64(std::uint64_t(std::uint32_t(sample)) + 1));
+}
+
 Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCounts& counts,
-                 const Vec3d& throughput) {
+                 const Vec3d& throughput, std::uint64_t path_seed) {
   const std::uint64_t intersect_start = context.time_queries ? __rdtsc() : 0;
   const Hit hit = context.accel.intersect(ray);
   if (context.time_queries) add_at(counts.intersect_ticks_per_depth, std::size_t(depth), __rdtsc() - intersect_start);
-  return shade_hit(context, ray, hit, depth, counts, throughput);
+  return shade_hit(context, ray, hit, depth, counts, throughput, path_seed);
 }
 
 namespace {
+
+// "light 2" or "area light 0 sample 5" for the trace: light slots past the scene's lights are
+// emitters' samples.
+std::string light_label(const ShadingContext& context, std::size_t slot, int sample) {
+  const std::size_t lights = context.scene.lights.size();
+  return slot < lights ? fmt::format("light {}", slot) : fmt::format("area light {} sample {}", slot - lights, sample);
+}
 
 // What shade_surface does with each light's unshadowed term: `lit` adds a term that needs no shadow
 // query, `query` one that is added only if `shadow_ray` is unblocked, in light order; `finish`
@@ -89,19 +123,21 @@ struct ImmediateShadows {
   Vec3d radiance{0.0};
 
   void begin(const Vec3d& emission) { radiance = emission; }
-  void lit(std::size_t light, const Vec3d& term) {
-    if (context.trace) note(context, depth, "  light {}: visible, term {}", light, format_vec(term));
+  // `slot`: the light (see RayCounts::add_shadow_query); `sample`: the area-light sample, for the trace.
+  void lit(std::size_t slot, const Vec3d& term, int sample = 0) {
+    if (context.trace) note(context, depth, "  {}: visible, term {}", light_label(context, slot, sample), format_vec(term));
     radiance += term;
   }
-  void query(std::size_t light, const Vec3d& term, const Ray& shadow_ray) {
-    ++counts.shadow;
-    add_at(counts.shadow_per_light, light);
+  void query(std::size_t slot, const Vec3d& term, const Ray& shadow_ray, int sample = 0) {
+    const std::size_t light_count = context.scene.lights.size();
+    counts.add_shadow_query(light_count, slot);
     const std::uint64_t start = context.time_queries ? __rdtsc() : 0;
     const bool blocked = context.accel.occluded(shadow_ray);
-    if (context.time_queries) add_at(counts.shadow_ticks_per_light, light, __rdtsc() - start);
+    if (context.time_queries) counts.add_shadow_ticks(light_count, slot, __rdtsc() - start);
     if (context.trace) {
-      note(context, depth, "  light {}: shadow ray {}: {}", light, format_ray(shadow_ray), blocked ? "blocked" : "clear");
-      note(context, depth, "  light {}: {}, term {}", light, blocked ? "in shadow" : "visible", format_vec(term));
+      const std::string label = light_label(context, slot, sample);
+      note(context, depth, "  {}: shadow ray {}: {}", label, format_ray(shadow_ray), blocked ? "blocked" : "clear");
+      note(context, depth, "  {}: {}, term {}", label, blocked ? "in shadow" : "visible", format_vec(term));
     }
     if (!blocked) radiance += term;
   }
@@ -111,19 +147,19 @@ struct ImmediateShadows {
 struct DeferredShadows {
   PendingShading& pending;
   RayCounts& counts;
+  std::size_t light_count;  // Scene::lights.size()
   PendingShading::Pixel pixel{};
 
   void begin(const Vec3d& emission) {
     pixel.emission = emission;
     pixel.first_term = static_cast<std::uint32_t>(pending.terms.size());
   }
-  void lit(std::size_t, const Vec3d& term) { pending.terms.push_back({term, PendingShading::kNoQuery}); }
-  void query(std::size_t light, const Vec3d& term, const Ray& shadow_ray) {
-    ++counts.shadow;
-    add_at(counts.shadow_per_light, light);
+  void lit(std::size_t, const Vec3d& term, int = 0) { pending.terms.push_back({term, PendingShading::kNoQuery}); }
+  void query(std::size_t slot, const Vec3d& term, const Ray& shadow_ray, int = 0) {
+    counts.add_shadow_query(light_count, slot);
     pending.terms.push_back({term, static_cast<std::uint32_t>(pending.shadow_rays.size())});
     pending.shadow_rays.push_back(shadow_ray);
-    pending.shadow_lights.push_back(static_cast<std::uint32_t>(light));
+    pending.shadow_lights.push_back(static_cast<std::uint32_t>(slot));
   }
   void add_reflection(const Vec3d& reflection) {
     pixel.reflection = reflection;
@@ -131,10 +167,104 @@ struct DeferredShadows {
   }
 };
 
+// What the area-light terms at a hit read: the surface (world space, double) and its colours.
+struct LitSurface {
+  const SurfacePoint& surface;
+  const Vec3d& normal;   // shading normal, unit
+  const Vec3d& to_eye;   // unit, towards the ray's origin
+  const Vec3d& diffuse;  // C_d, texture applied
+  const Vec3d& specular;
+  double shininess;
+  const MaterialPlan& terms;
+};
+
+// The area lights' terms at a hit, in emitter order, each emitter's light_samples samples in
+// pattern order: term_k = L_e,k / pdf_k (C_d n.l_k + C_s max(n.h_k, 0)^sigma) / (pi N) where
+// n.l_k > 0, shadowed by its own ray. The emitter-level rules (unlit material, behind a planar
+// emitter, below the horizon) make every term of the emitter zero in both modes: pruned, no
+// sample is drawn; unpruned, the samples are drawn and traced and add zero.
+template <class Shadows>
+void add_area_light_terms(const ShadingContext& context, const LitSurface& lit, int depth, std::uint64_t path_seed,
+                          RayCounts& counts, Shadows& shadows) {
+  const EffectsPlan& plan = context.plan;
+  const AreaLights& area_lights = *plan.area_lights;
+  const bool prune = plan.options.prune;
+  const auto samples = static_cast<std::uint32_t>(plan.options.light_samples);
+  const double scale = 1.0 / (std::numbers::pi * double(samples));
+  const Vec3d& point = lit.surface.point;
+  const auto skip = [&](SkipRule rule, std::size_t emitter, std::uint32_t amount) {
+    counts.skipped[static_cast<int>(rule)] += amount;
+    if (context.trace)
+      note(context, depth, "  area light {}: {} sample{} not traced ({})", emitter, amount, amount == 1 ? "" : "s",
+           to_string(rule));
+  };
+  for (std::size_t e = 0; e < area_lights.emitters.size(); ++e) {
+    const Emitter& emitter = area_lights.emitters[e];
+    const std::size_t slot = context.scene.lights.size() + e;
+    if (!plan.emitters[e].contributes) {
+      skip(SkipRule::emitter_off, e, samples);
+      continue;
+    }
+    SkipRule zero_rule = SkipRule::sample_zero;  // the emitter-level rule that zeroes every term, if any
+    if (!lit.terms.diffuse && !lit.terms.specular)
+      zero_rule = SkipRule::unlit_material;
+    else if (!in_front_of_emitter(emitter, point))
+      zero_rule = SkipRule::emitter_behind;
+    else if (emitter_below_horizon(emitter, point, lit.normal))
+      zero_rule = SkipRule::emitter_below_horizon;
+    const bool all_zero = zero_rule != SkipRule::sample_zero;
+    if (prune && all_zero) {
+      skip(zero_rule, e, samples);
+      continue;
+    }
+    const auto pattern = static_cast<std::uint32_t>(mix64(path_seed ^ mix64((std::uint64_t(depth) << 32) + e)));
+    EmitterSampler sampler(emitter, context.flat, context.scene, context.textures, point, plan.options.light_sampling);
+    for (std::uint32_t k = 0; k < samples; ++k) {
+      const LightSample sample = sampler.sample(cmj_sample(k, samples, pattern));
+      if (!sample.valid) {
+        skip(SkipRule::sample_on_surface, e, 1);
+        continue;
+      }
+      Vec3d term(0.0);
+      const double n_dot_l = glm::dot(lit.normal, sample.direction);
+      if (!all_zero && n_dot_l > 0.0) {
+        const Vec3d half_sum = sample.direction + lit.to_eye;
+        const double half_length = glm::length(half_sum);
+        const double n_dot_h = half_length > 0.0 ? std::max(glm::dot(lit.normal, half_sum) / half_length, 0.0) : 0.0;
+        const Vec3d highlight = lit.terms.specular || !prune ? lit.specular * std::pow(n_dot_h, lit.shininess) : Vec3d(0.0);
+        term = sample.radiance_over_pdf * (lit.diffuse * n_dot_l + highlight) * scale;
+      }
+      if (prune && term == Vec3d(0.0)) {
+        skip(SkipRule::sample_zero, e, 1);
+        continue;
+      }
+      const Ray shadow_ray =
+          shadow_ray_to_sample(context.ray_offset, offset_ray_origin(context.ray_offset, lit.surface, sample.direction), sample);
+      if (shadow_ray.tfar > 0.0f) {
+        shadows.query(slot, term, shadow_ray, int(k));
+      } else {
+        skip(SkipRule::sample_on_surface, e, 1);
+        shadows.lit(slot, term, int(k));
+      }
+    }
+  }
+}
+
+// The radiance a ray sees leaving the hit surface itself: an emitter's emission (times its
+// texture) from its front side only, else the material's self-emission from either side.
+Vec3d emitted_radiance(const ShadingContext& context, const Material& material, std::uint32_t material_id,
+                       const SurfacePoint& surface, const Vec3d& to_eye, const std::optional<Vec2f>& texcoord) {
+  if (!material.emits_light) return Vec3d(material.emission);
+  if (!(glm::dot(surface.geometric_normal, to_eye) > 0.0)) return Vec3d(0.0);
+  if (texcoord && context.textures && context.textures->has_emission(material_id))
+    return Vec3d(material.emission) * Vec3d(context.textures->emission(material_id, *texcoord));
+  return Vec3d(material.emission);
+}
+
 // shade_hit's work for a hit, with the shadow queries left to `shadows`.
 template <class Shadows>
 void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit, int depth, RayCounts& counts,
-                   const Vec3d& throughput, Shadows& shadows) {
+                   const Vec3d& throughput, std::uint64_t path_seed, Shadows& shadows) {
   add_at(counts.hits_per_depth, std::size_t(depth));
 
   // Surface at the hit, world space, double. The point is interpolated from the triangle's
@@ -187,7 +317,7 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
       note(context, depth, "  {}: not traced ({})", light < 0 ? "reflection" : fmt::format("light {}", light),
            to_string(rule));
   };
-  shadows.begin(Vec3d(material.emission));
+  shadows.begin(emitted_radiance(context, material, material_id, surface, to_eye, texcoord));
   for (std::size_t j = 0; j < context.scene.lights.size(); ++j) {
     const Light& light = context.scene.lights[j];
     const LightPlan& light_plan = plan.lights[j];
@@ -271,6 +401,10 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
     }
   }
 
+  if (plan.area_lights)
+    add_area_light_terms(context, LitSurface{surface, normal, to_eye, diffuse, specular, double(material.shininess), terms},
+                         depth, path_seed, counts, shadows);
+
   if (depth < context.scene.settings.max_depth) {
     const Vec3d next_throughput = throughput * reflective;
     if (prune && !terms.reflection) {
@@ -285,7 +419,8 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
       ++counts.reflection;
       add_at(counts.reflection_per_depth, std::size_t(depth) + 1);
       if (context.trace) note(context, depth, "  reflection, weight {}:", format_vec(reflective));
-      shadows.add_reflection(reflective * Vec3d(find_color(context, reflection_ray, depth + 1, counts, next_throughput)));
+      shadows.add_reflection(
+          reflective * Vec3d(find_color(context, reflection_ray, depth + 1, counts, next_throughput, path_seed)));
     }
   }
 }
@@ -293,7 +428,7 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
 }  // namespace
 
 Color shade_hit(const ShadingContext& context, const Ray& ray, const Hit& hit, int depth, RayCounts& counts,
-                const Vec3d& throughput) {
+                const Vec3d& throughput, std::uint64_t path_seed) {
   if (!hit.found()) {
     if (context.trace)
       note(context, depth, "{} ray {}: miss, background {}", depth == 0 ? "camera" : "reflection", format_ray(ray),
@@ -301,7 +436,7 @@ Color shade_hit(const ShadingContext& context, const Ray& ray, const Hit& hit, i
     return context.scene.settings.background;
   }
   ImmediateShadows shadows{context, counts, depth};
-  shade_surface(context, ray, hit, depth, counts, throughput, shadows);
+  shade_surface(context, ray, hit, depth, counts, throughput, path_seed, shadows);
   if (context.trace) note(context, depth, "  colour {}", format_vec(shadows.radiance));
   return Color(shadows.radiance);
 }
@@ -313,11 +448,11 @@ void PendingShading::clear() {
   shadow_lights.clear();
 }
 
-void shade_camera_hit(const ShadingContext& context, const Ray& ray, const Hit& hit, RayCounts& counts,
-                      PendingShading& pending) {
-  DeferredShadows shadows{pending, counts};
+void shade_camera_hit(const ShadingContext& context, const Ray& ray, const Hit& hit, std::uint64_t path_seed,
+                      RayCounts& counts, PendingShading& pending) {
+  DeferredShadows shadows{pending, counts, context.scene.lights.size()};
   if (hit.found()) {
-    shade_surface(context, ray, hit, 0, counts, Vec3d(1.0), shadows);
+    shade_surface(context, ray, hit, 0, counts, Vec3d(1.0), path_seed, shadows);
     shadows.pixel.term_count = static_cast<std::uint32_t>(pending.terms.size()) - shadows.pixel.first_term;
   } else {
     shadows.pixel.emission = Vec3d(context.scene.settings.background);

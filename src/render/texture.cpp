@@ -24,7 +24,8 @@ float srgb_to_linear(float c) {
 
 struct TextureSampler::Impl {
   std::unique_ptr<TextureFiles> files;  // null until a material has a texture
-  std::vector<int> slots;               // per material: the slot in `files`, -1 for none
+  std::vector<int> diffuse_slots;       // per material: the slot in `files`, -1 for none
+  std::vector<int> emission_slots;
   fs::path temp_dir;                    // empty unless an embedded image needed a file
 
   ~Impl() {
@@ -48,28 +49,51 @@ struct TextureSampler::Impl {
 };
 
 TextureSampler::TextureSampler(const Scene& scene) : impl_(std::make_unique<Impl>()) {
-  impl_->slots.assign(scene.materials.size(), -1);
+  impl_->diffuse_slots.assign(scene.materials.size(), -1);
+  impl_->emission_slots.assign(scene.materials.size(), -1);
   std::map<const std::string*, std::string> written;
-  for (std::size_t i = 0; i < scene.materials.size(); ++i) {
-    const Texture& texture = scene.materials[i].diffuse_texture;
-    if (texture.empty()) continue;
+  const auto open = [&](const Texture& texture, int& slot) {
+    if (texture.empty()) return;
     if (!impl_->files) impl_->files = oiio_module().new_texture_files();
     const std::string path = texture.encoded ? impl_->file_for(texture.encoded, written) : texture.path;
-    if (!path.empty()) impl_->slots[i] = impl_->files->open(path, texture.wrap_s, texture.wrap_t);
+    if (!path.empty()) slot = impl_->files->open(path, texture.wrap_s, texture.wrap_t);
+  };
+  for (std::size_t i = 0; i < scene.materials.size(); ++i) {
+    open(scene.materials[i].diffuse_texture, impl_->diffuse_slots[i]);
+    if (scene.materials[i].emits_light) open(scene.materials[i].emission_texture, impl_->emission_slots[i]);
   }
 }
 
 TextureSampler::~TextureSampler() = default;
 
-bool TextureSampler::has_diffuse(std::uint32_t material) const {
-  return material < impl_->slots.size() && impl_->slots[material] >= 0;
+namespace {
+
+bool has_slot(const std::vector<int>& slots, std::uint32_t material) {
+  return material < slots.size() && slots[material] >= 0;
 }
+
+// Linear RGB of texture slot `slot` at `uv`: sRGB texel values decoded after filtering; white when
+// the lookup fails.
+Color sample_srgb(TextureFiles& files, int slot, Vec2f uv) {
+  float rgb[3] = {1.0f, 1.0f, 1.0f};
+  if (!files.sample(slot, uv, rgb)) return Color(1.0f);
+  return {srgb_to_linear(rgb[0]), srgb_to_linear(rgb[1]), srgb_to_linear(rgb[2])};
+}
+
+}  // namespace
+
+bool TextureSampler::has_diffuse(std::uint32_t material) const { return has_slot(impl_->diffuse_slots, material); }
 
 Color TextureSampler::diffuse(std::uint32_t material, Vec2f uv) const {
   if (!has_diffuse(material)) return Color(1.0f);
-  float rgb[3] = {1.0f, 1.0f, 1.0f};
-  if (!impl_->files->sample(impl_->slots[material], uv, rgb)) return Color(1.0f);
-  return {srgb_to_linear(rgb[0]), srgb_to_linear(rgb[1]), srgb_to_linear(rgb[2])};
+  return sample_srgb(*impl_->files, impl_->diffuse_slots[material], uv);
+}
+
+bool TextureSampler::has_emission(std::uint32_t material) const { return has_slot(impl_->emission_slots, material); }
+
+Color TextureSampler::emission(std::uint32_t material, Vec2f uv) const {
+  if (!has_emission(material)) return Color(1.0f);
+  return sample_srgb(*impl_->files, impl_->emission_slots[material], uv);
 }
 
 bool texture_is_readable(const Texture& texture, std::string& reason) {

@@ -5,10 +5,12 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "rt/flatten/flatten.h"
+#include "rt/render/area_lights.h"
 #include "rt/render/ray_offset.h"
 #include "rt/scene/scene.h"
 
@@ -26,6 +28,13 @@ struct EffectsOptions {
   // is dropped there, without a shadow ray. Error per pixel <= min_light_contribution * lights *
   // EffectsPlan::path_weight_bound. 0 = off.
   double min_light_contribution = 0.0;
+  // Area lights (emissive triangles): shadow-ray samples per emitter per hit, and how each picks
+  // its point (docs/area-lights.md).
+  int light_samples = kDefaultLightSamples;
+  LightSampling light_sampling = LightSampling::automatic;
+
+  static constexpr int kDefaultLightSamples = 16;
+  static constexpr int kMaxLightSamples = 1 << 16;
 };
 
 // Why a shadow or reflection ray was not traced, one counter per rule (RayCounts::skipped).
@@ -38,8 +47,15 @@ enum class SkipRule : int {
   black_reflection,   // exact: the reflection weight is black
   dim_light,          // approximation: the light's term is below min_light_contribution
   low_throughput,     // approximation: the path's throughput is below min_throughput
+  // Area-light samples (one count per sample, so an emitter skipped at a hit counts light_samples):
+  emitter_off,            // exact: the emitter lights nothing anywhere (no material can reflect its light)
+  unlit_material,         // exact: the hit's material has no diffuse or specular colour
+  emitter_behind,         // exact: the point is on or behind a planar one-sided emitter
+  emitter_below_horizon,  // exact: the whole emitter is on or below the surface's tangent plane
+  sample_zero,            // exact: the sample's unshadowed term is zero (triangle's back, n.l <= 0, black texel)
+  sample_on_surface,      // always: no direction to the sample, or it is closer than the offset margin
 };
-inline constexpr int kSkipRuleCount = 8;
+inline constexpr int kSkipRuleCount = 14;
 std::string to_string(SkipRule rule);
 
 // One light as the shader uses it: constants hoisted out of the per-hit loop (world space, double).
@@ -49,6 +65,12 @@ struct LightPlan {
   std::string why;          // one phrase: why it is on/off, which shadow rules apply
   Vec3d color{0.0};         // linear RGB
   Vec3d to_light{0.0};      // directional lights: unit direction towards the light
+};
+
+// One emitter of EffectsPlan::area_lights as the shader uses it.
+struct EmitterPlan {
+  bool contributes = true;  // false: no sample anywhere (SkipRule::emitter_off)
+  std::string why;          // one phrase: its size and power, why it is on/off, which rules apply
 };
 
 // Which terms of FindColor a material can produce (a term whose colour is black is zero).
@@ -64,6 +86,9 @@ struct EffectsPlan {
   EffectsOptions options;
   std::vector<LightPlan> lights;        // parallel to Scene::lights
   std::vector<MaterialPlan> materials;  // parallel to Scene::materials
+  // The scene's emitters (null when it has none) and what the shader does with each.
+  std::shared_ptr<const AreaLights> area_lights;
+  std::vector<EmitterPlan> emitters;    // parallel to area_lights->emitters
   bool shadows = false;                 // some shadow ray can be traced
   // The whole scene is one convex object with outward normals, so a surface point whose geometric
   // normal faces the light cannot be shadowed (needs robust ray offsets, see plan_effects).
@@ -74,7 +99,8 @@ struct EffectsPlan {
   // hits only).
   int useful_depth = 0;
   // Upper bounds used by the approximations' error bounds (linear RGB, +inf when unbounded, e.g. a
-  // point light without constant attenuation): the largest radiance find_color can return, and the
+  // point light without constant attenuation, or any area light, whose Monte Carlo estimates have no
+  // a-priori bound): the largest radiance find_color can return, and the
   // largest sum over a path of the products of reflection weights (1 + r + r^2 + ... to the depth).
   double radiance_bound = 0.0;
   double path_weight_bound = 0.0;

@@ -22,9 +22,11 @@ namespace rt {
 // Per-depth and per-light vectors grow on demand (depth d: 0 = camera rays, d >= 1 = reflections).
 struct RayCounts {
   std::uint64_t camera = 0;
-  std::uint64_t shadow = 0;
+  std::uint64_t shadow = 0;      // towards point, spot and directional lights
   std::uint64_t reflection = 0;
+  std::uint64_t area_light = 0;  // shadow rays towards samples on emitters
   std::vector<std::uint64_t> shadow_per_light;      // [j]: shadow rays traced towards light j
+  std::vector<std::uint64_t> area_light_per_emitter;  // [e]: shadow rays towards samples of emitter e
   std::vector<std::uint64_t> reflection_per_depth;  // [d]: reflection rays of depth d (index 0 unused)
   std::vector<std::uint64_t> hits_per_depth;        // [d]: rays of depth d that hit a surface
   std::array<std::uint64_t, kSkipRuleCount> skipped{};  // [SkipRule]: rays not traced, per rule
@@ -33,9 +35,14 @@ struct RayCounts {
   // only ratios of these are meaningful.
   std::vector<std::uint64_t> intersect_ticks_per_depth;
   std::vector<std::uint64_t> shadow_ticks_per_light;
+  std::vector<std::uint64_t> area_light_ticks_per_emitter;
   std::uint64_t loop_ticks = 0;
 
-  std::uint64_t total() const { return camera + shadow + reflection; }
+  std::uint64_t total() const { return camera + shadow + reflection + area_light; }
+  // Counts one shadow query towards light slot `slot` (`ticks` of it when timed): slots
+  // 0 .. light_count - 1 are Scene::lights, the next ones the emitters of EffectsPlan::area_lights.
+  void add_shadow_query(std::size_t light_count, std::size_t slot);
+  void add_shadow_ticks(std::size_t light_count, std::size_t slot, std::uint64_t ticks);
   std::uint64_t skipped_total() const;
   RayCounts& operator+=(const RayCounts& other);
 };
@@ -57,7 +64,10 @@ struct ShadingContext {
 
 // The seed's FindColor for a ray whose origin and direction are world space:
 //   R = E + sum_j V_j L_j (C_ambient + C_diffuse max(n.l_j, 0) + C_specular max(n.h_j, 0)^sigma)
+//       + sum_e (1 / (pi N)) sum_k V_k L_e,k / pdf_k (C_diffuse (n.l_k) + C_specular max(n.h_k, 0)^sigma)
 //       + C_reflective FindColor(reflected ray)
+// the middle sum over emitters e and their N light samples k where n.l_k > 0 (area_lights.h;
+// docs/area-lights.md), E the emission (an emitter's only from its front side)
 // where C_reflective is Material::reflective when set, else C_specular (the seed's formula); an
 // explicitly zero C_reflective traces no reflection ray.
 // with Blinn-Phong half vectors h_j = normalize(l_j + v), V_j the 0/1 shadow-ray visibility and
@@ -68,10 +78,11 @@ struct ShadingContext {
 // reflection recurses while depth < max_depth. A miss returns settings.background.
 // Rays the plan's rules skip are not traced (counted in RayCounts::skipped); the exact rules leave
 // the result bit-identical. `throughput` (linear RGB) is the product of the reflection weights
-// that lead to this ray, read only by the min_throughput approximation.
+// that lead to this ray, read only by the min_throughput approximation. `path_seed` makes the
+// light samples of this path (render_image: pixel_path_seed of the pixel and camera sample).
 // Computed in double, returned as float32 linear RGB.
 Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCounts& counts,
-                 const Vec3d& throughput = Vec3d(1.0));
+                 const Vec3d& throughput = Vec3d(1.0), std::uint64_t path_seed = 0);
 
 // Camera hits of neighbouring pixels whose shadow rays are traced together (render_image's blocks):
 // shade_camera_hit records a pixel's unshadowed light terms and shadow rays, the caller answers
@@ -93,15 +104,15 @@ struct PendingShading {
   std::vector<Pixel> pixels;          // in shade_camera_hit's call order
   std::vector<Term> terms;
   std::vector<Ray> shadow_rays;       // world space, as shade_hit would trace them
-  std::vector<std::uint32_t> shadow_lights;  // the light of each shadow ray
+  std::vector<std::uint32_t> shadow_lights;  // the light slot of each shadow ray (see RayCounts::add_shadow_query)
   void clear();
 };
 
 // Appends the camera ray `ray`'s pixel (closest hit `hit`) to `pending`; counts as shade_hit
 // does at depth 0 (shadow rays counted when recorded; their ticks are the caller's). Reflection
 // rays are traced at once, one by one.
-void shade_camera_hit(const ShadingContext& context, const Ray& ray, const Hit& hit, RayCounts& counts,
-                      PendingShading& pending);
+void shade_camera_hit(const ShadingContext& context, const Ray& ray, const Hit& hit, std::uint64_t path_seed,
+                      RayCounts& counts, PendingShading& pending);
 
 // The colour of pending pixel `pixel`; blocked[i] answers pending.shadow_rays[i] (1: occluded).
 Color finish_camera_hit(const PendingShading& pending, std::size_t pixel, std::span<const std::uint8_t> blocked);
@@ -109,6 +120,10 @@ Color finish_camera_hit(const PendingShading& pending, std::size_t pixel, std::s
 // find_color for a ray whose closest hit `hit` is already known (camera rays traced together by
 // Accel::intersect_coherent): the same colour, the same counts except the closest-hit query's ticks.
 Color shade_hit(const ShadingContext& context, const Ray& ray, const Hit& hit, int depth, RayCounts& counts,
-                const Vec3d& throughput = Vec3d(1.0));
+                const Vec3d& throughput = Vec3d(1.0), std::uint64_t path_seed = 0);
+
+// The seed of the light samples of camera sample `sample` of pixel (x, y): a hash, so that an
+// image does not depend on thread count, tile order or region.
+std::uint64_t pixel_path_seed(int x, int y, int sample);
 
 }  // namespace rt

@@ -11,12 +11,12 @@
 
 namespace rt {
 
-// The diffuse textures of a scene's materials, ready to sample from many threads at once.
+// The diffuse and emission textures of a scene's materials, ready to sample from many threads at once.
 // Lookups are bilinear on the full-resolution image with no derivatives and no MIP-mapping: a
 // Whitted renderer traces one ray per pixel, so there is no footprint to filter over.
 class TextureSampler {
  public:
-  // Opens every material's diffuse_texture. Embedded (encoded) images are written to a private
+  // Opens every material's diffuse_texture, and emitters' emission_texture. Embedded (encoded) images are written to a private
   // temporary directory, removed again by the destructor. A texture that cannot be read samples
   // as white (loaders check readability and report it; see load_gltf.h).
   explicit TextureSampler(const Scene& scene);
@@ -31,6 +31,10 @@ class TextureSampler {
   // with the material's wrap modes; sRGB texel values are decoded after filtering. White when the
   // material has no texture or the lookup fails.
   Color diffuse(std::uint32_t material, Vec2f uv) const;
+
+  // The same for the emission texture of emitter material `material` (Material::emits_light).
+  bool has_emission(std::uint32_t material) const;
+  Color emission(std::uint32_t material, Vec2f uv) const;
 
  private:
   struct Impl;  // keeps OpenImageIO out of this header

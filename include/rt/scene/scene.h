@@ -170,6 +170,10 @@ std::optional<CameraProblem> find_camera_problem(const Camera& camera);
 // Throws InputError naming `source`, "camera.<field>" and the reason if find_camera_problem finds one.
 void validate_camera(const Camera& camera, const std::string& source);
 
+// True when some node's triangle mesh uses a material that emits light (Material::emits_light with
+// a non-black emission): loaders then add no headlight, the scene's own surfaces light it.
+bool has_emitters(const Scene& scene);
+
 // Sum of weight(node) over every instance of every node reachable from scene.root, a shared
 // subgraph counted once per path that reaches it (as flattening expands it), saturating at
 // UINT64_MAX. Sizes what flattening will allocate before it does: a file can instance a subtree

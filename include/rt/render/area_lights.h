@@ -1,0 +1,132 @@
+#pragma once
+// Area lights: the emissive triangles of a scene (materials with Material::emits_light), grouped
+// into one emitter per material, and the light samples drawn on them at a shading point.
+// World space, double precision. The radiometry and the estimator are in docs/area-lights.md.
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "rt/flatten/flatten.h"
+#include "rt/render/ray_offset.h"
+#include "rt/render/sampling.h"
+#include "rt/render/texture.h"
+#include "rt/scene/framing.h"
+#include "rt/scene/scene.h"
+
+namespace rt {
+
+// How a light sample picks its point on the chosen triangle. area: uniformly by area. solid_angle:
+// uniformly in the solid angle the triangle subtends (Arvo 1995), which removes the 1/r^2 and
+// cos(theta') of the emitter from the estimator. automatic: solid angle where it pays, i.e. where
+// the triangle subtends between kMinSolidAngleSampling and kMaxSolidAngleSampling, else area.
+enum class LightSampling { automatic, area, solid_angle };
+std::string_view to_string(LightSampling sampling);
+// Parses "auto", "area" or "solid-angle"; throws InputError otherwise.
+LightSampling parse_light_sampling(std::string_view text);
+
+// The solid angles (steradians) between which LightSampling::automatic samples by solid angle:
+// below, area sampling is already nearly uniform in solid angle and cheaper; above (almost a
+// hemisphere), the spherical triangle's construction loses accuracy (pbrt-v4's thresholds).
+inline constexpr double kMinSolidAngleSampling = 3e-4;
+inline constexpr double kMaxSolidAngleSampling = 6.22;
+
+// One emissive triangle in world space (double, from the float32 flattened vertices).
+struct EmitterTriangle {
+  Vec3d p0, p1, p2;
+  Vec3d normal;              // unit, towards the front: (p1 - p0) x (p2 - p0)
+  double area = 0.0;         // scene units^2
+  std::uint32_t primitive = 0;  // index in FlatScene::triangles
+};
+
+// The triangles of one emissive material, chosen among by power: triangle i with probability
+// cdf[i] - cdf[i - 1], proportional to its area times the luminance of the material's emission
+// (the emission texture is not in the weights; it modulates each sample).
+struct Emitter {
+  std::uint32_t material = 0;  // index into Scene::materials
+  std::vector<EmitterTriangle> triangles;
+  std::vector<double> cdf;     // cumulative, cdf.back() == 1
+  double area = 0.0;           // scene units^2
+  // Radiant flux leaving the front sides, pi * area * emission (linear RGB, in radiance units
+  // times scene units^2), before any texture.
+  Vec3d power{0.0};
+  Bounds3d bounds;             // of the vertices
+  // All triangles lie in one plane and face the same way: a point on or behind it receives nothing.
+  bool planar = false;
+  Vec3d plane_normal{0.0};     // unit, the front side's
+  double plane_offset = 0.0;   // plane: dot(plane_normal, x) == plane_offset
+};
+
+// Every emitter of a scene, in material order.
+struct AreaLights {
+  std::vector<Emitter> emitters;
+  std::size_t triangle_count = 0;  // emissive triangles over all emitters
+  bool empty() const { return emitters.empty(); }
+};
+
+// The scene's emitters: every flattened triangle whose material emits light with a non-black
+// emission. Throws InputError naming scene.source when a sphere has an emitting material (area
+// lights are triangles) or when the emitter list would not fit in memory (checked before
+// allocating).
+AreaLights collect_area_lights(const Scene& scene, const FlatScene& flat);
+
+// Whether point `point` (world space) is strictly in front of a planar emitter; true for
+// non-planar ones. The same test decides the "behind the emitter" rule and the estimator, so
+// pruning by it cannot change a pixel.
+bool in_front_of_emitter(const Emitter& emitter, const Vec3d& point);
+
+// Whether the whole emitter lies on or below the plane through `point` with normal `normal`
+// (unit, world space): no sample of it can have n.l > 0 there. Decided on the emitter's bounds.
+bool emitter_below_horizon(const Emitter& emitter, const Vec3d& point, const Vec3d& normal);
+
+// A point sampled on an emitter as seen from a shading point, with what the estimator needs.
+struct LightSample {
+  bool valid = false;        // false: no direction (the point lies on the triangle's plane or an edge)
+  Vec3d direction{0.0};      // unit, world space, from the shading point towards the sample
+  double distance = 0.0;     // world units, from the shading point to the sample
+  // Emitted radiance at the sample divided by the solid-angle density of the sample direction
+  // (linear RGB, radiance x steradians): zero when the sample sees the triangle's back.
+  Vec3d radiance_over_pdf{0.0};
+  SurfacePoint light_point;  // the sample on the emitter, for the shadow ray's far end
+};
+
+// Draws the light samples of one emitter seen from one shading point. Sample u (in [0, 1)^2, one
+// point of cmj_sample) picks the triangle with u.y through the power cdf, and u.y rescaled to that
+// triangle's interval picks the point together with u.x, by area or by solid angle as `sampling`
+// says. What depends only on (point, triangle), the spherical triangle and the choice of strategy,
+// is set up once for each of the first kCachedTriangles triangles and reused by all the samples
+// of the hit. `textures` supplies the emission texture (nullptr: ignored). Deterministic.
+class EmitterSampler {
+ public:
+  EmitterSampler(const Emitter& emitter, const FlatScene& flat, const Scene& scene, const TextureSampler* textures,
+                 const Vec3d& point, LightSampling sampling);
+  LightSample sample(Vec2d u);
+
+  static constexpr std::size_t kCachedTriangles = 4;
+
+ private:
+  struct View {  // the triangle as seen from the point
+    bool by_solid_angle = false;
+    SphericalTriangle spherical;
+  };
+  View view_of(const EmitterTriangle& triangle) const;
+
+  const Emitter& emitter_;
+  const FlatScene& flat_;
+  const Scene& scene_;
+  const TextureSampler* textures_;
+  Vec3d point_;
+  LightSampling sampling_;
+  std::array<View, kCachedTriangles> cache_{};
+  std::array<bool, kCachedTriangles> cached_{};
+};
+
+// The shadow ray from a shading point to a light sample: from `origin` (already offset off the
+// shading surface) to the sample moved off its emitter towards the origin by the sample's error
+// bound, stopping short as for point lights (shadow_ray_tfar). tfar <= 0: the sample is closer
+// than that margin, nothing can be in between.
+Ray shadow_ray_to_sample(const RayOffset& policy, const Vec3f& origin, const LightSample& sample);
+
+}  // namespace rt

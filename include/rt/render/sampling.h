@@ -1,0 +1,69 @@
+#pragma once
+// Deterministic sample patterns and the warps that turn them into points on lights: hashing,
+// correlated multi-jittered 2D points, uniform points on a triangle, uniform directions in the
+// solid angle a triangle subtends. Double precision throughout; no state, so every sample is a
+// function of its indices and the image does not depend on thread count or tile order.
+
+#include <cstdint>
+#include <optional>
+
+#include "rt/core/math.h"
+
+namespace rt {
+
+// splitmix64's finaliser (Steele, Lea, Flood, "Fast Splittable Pseudorandom Number Generators",
+// OOPSLA 2014): a bijective mix whose outputs pass BigCrush for consecutive inputs.
+constexpr std::uint64_t mix64(std::uint64_t z) {
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+
+// The top 53 bits of `bits` as a double in [0, 1).
+constexpr double unit_double(std::uint64_t bits) { return static_cast<double>(bits >> 11) * 0x1p-53; }
+
+// Point `index` of `count` (0 <= index < count) of the correlated multi-jittered pattern number
+// `pattern` in [0, 1)^2 (Kensler, "Correlated Multi-Jittered Sampling", Pixar Technical Memo
+// 13-01, 2013, the arbitrary-count version): y is stratified into `count` equal strata (one point
+// each), x into columns of a near-square grid, so any count is well stratified in both axes.
+Vec2d cmj_sample(std::uint32_t index, std::uint32_t count, std::uint32_t pattern);
+
+// Barycentrics (b0, b1, b2) of a uniformly distributed point on a triangle from u in [0, 1)^2, by
+// Heitz's low-distortion map ("A Low-Distortion Map Between Triangle and Square", 2019), which keeps
+// the stratification of u better than the square-root map and needs no square root.
+Vec3d sample_triangle_uniform(Vec2d u);
+
+// Solid angle (steradians) that the triangle a, b, c subtends at p (Van Oosterom and Strackee,
+// "The Solid Angle of a Plane Triangle", IEEE Trans. Biomed. Eng. 30, 1983). World space.
+double triangle_solid_angle(const Vec3d& p, const Vec3d& a, const Vec3d& b, const Vec3d& c);
+
+// The spherical triangle that the triangle (a, b, c) subtends at p, set up once for drawing many
+// directions uniformly distributed in its solid angle (Arvo, "Stratified Sampling of Spherical
+// Triangles", SIGGRAPH 1995). valid() is false when the triangle is degenerate as seen from p (p on
+// its plane or on a side's line): there is nothing to sample. World space, double.
+class SphericalTriangle {
+ public:
+  SphericalTriangle() = default;
+  SphericalTriangle(const Vec3d& p, const Vec3d& a, const Vec3d& b, const Vec3d& c);
+
+  bool valid() const { return area_ > 0.0; }
+  // Its area on the unit sphere (steradians, by Girard's theorem): the pdf of a direction is 1 / area.
+  double solid_angle() const { return area_; }
+  // The unit direction for u in [0, 1)^2: u.x chooses the sub-triangle of area u.x * solid_angle(),
+  // u.y the point along its far side, so a stratified u gives stratified directions.
+  Vec3d sample(Vec2d u) const;
+
+ private:
+  Vec3d A_{0.0}, B_{0.0};
+  Vec3d C_perp_{0.0};  // unit, C's component orthogonal to A
+  double alpha_ = 0.0, cos_alpha_ = 0.0, sin_alpha_ = 0.0, cos_c_ = 0.0;  // angle at A; cos of side AB
+  double area_ = 0.0;
+};
+
+// Barycentrics (b0, b1, b2) of the point where the ray from p along w (world space) meets the plane
+// of triangle (a, b, c), clamped onto the triangle against rounding; nullopt when w is parallel to
+// the plane (Moeller and Trumbore's formulation).
+std::optional<Vec3d> barycentrics_along(const Vec3d& p, const Vec3d& w, const Vec3d& a, const Vec3d& b,
+                                        const Vec3d& c);
+
+}  // namespace rt

@@ -1,0 +1,226 @@
+#include "rt/render/area_lights.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include <fmt/format.h>
+
+#include "rt/core/error.h"
+#include "rt/core/memory.h"
+#include "rt/render/sampling.h"
+
+namespace rt {
+
+namespace {
+
+bool is_black(const Color& c) { return c.r == 0.0f && c.g == 0.0f && c.b == 0.0f; }
+
+// Planarity tolerances (relative): normals within ~1e-6 rad of the first triangle's, vertices
+// within 1e-9 of the emitter's extent off its plane. A point the plane test puts behind a slightly
+// tilted triangle then receives at most ~1e-6 of a grazing contribution less; float32 vertices of a
+// flat quad are usually exactly coplanar.
+constexpr double kPlanarNormalCosine = 1.0 - 1e-12;
+constexpr double kPlanarDistance = 1e-9;
+
+// The emitter's plane, when every triangle lies in it and faces the same way.
+void find_plane(Emitter& emitter) {
+  const Vec3d n = emitter.triangles.front().normal;
+  const double offset = glm::dot(n, emitter.triangles.front().p0);
+  const double tolerance = kPlanarDistance * std::max(glm::length(emitter.bounds.hi - emitter.bounds.lo), 1e-300);
+  for (const EmitterTriangle& t : emitter.triangles) {
+    if (glm::dot(t.normal, n) < kPlanarNormalCosine) return;
+    for (const Vec3d& p : {t.p0, t.p1, t.p2})
+      if (std::abs(glm::dot(n, p) - offset) > tolerance) return;
+  }
+  emitter.planar = true;
+  emitter.plane_normal = n;
+  emitter.plane_offset = offset;
+}
+
+}  // namespace
+
+std::string_view to_string(LightSampling sampling) {
+  switch (sampling) {
+    case LightSampling::automatic: return "auto";
+    case LightSampling::area: return "area";
+    case LightSampling::solid_angle: return "solid-angle";
+  }
+  return "?";
+}
+
+LightSampling parse_light_sampling(std::string_view text) {
+  for (LightSampling s : {LightSampling::automatic, LightSampling::area, LightSampling::solid_angle})
+    if (text == to_string(s)) return s;
+  throw InputError("", "", fmt::format("unknown light sampling '{}' (expected auto, area or solid-angle)", text));
+}
+
+AreaLights collect_area_lights(const Scene& scene, const FlatScene& flat) {
+  AreaLights lights;
+  std::vector<int> emitter_of(scene.materials.size(), -1);  // per material: its emitter, -1 if it emits nothing
+  bool any = false;
+  for (std::size_t m = 0; m < scene.materials.size(); ++m) {
+    const Material& material = scene.materials[m];
+    if (material.emits_light && !is_black(material.emission)) {
+      emitter_of[m] = 0;
+      any = true;
+    }
+  }
+  if (!any) return lights;
+  for (const FlatSphere& sphere : flat.spheres)
+    if (emitter_of[sphere.material] >= 0)
+      throw InputError(scene.source, "",
+                       fmt::format("material '{}' emits light and is used by a sphere: area lights must be triangle "
+                                   "meshes (use a mesh, or tessellate spheres with --sphere-tessellation N)",
+                                   scene.materials[sphere.material].name));
+
+  std::size_t count = 0;
+  for (std::uint32_t material : flat.material_ids) count += emitter_of[material] >= 0;
+  if (const auto shortfall = memory_shortfall(count * (sizeof(EmitterTriangle) + sizeof(double))))
+    throw InputError(scene.source, "", fmt::format("the {} emissive triangles' area lights {}", count, *shortfall));
+
+  for (std::size_t m = 0; m < scene.materials.size(); ++m)
+    if (emitter_of[m] >= 0) {
+      emitter_of[m] = -1;
+      Emitter emitter;
+      emitter.material = static_cast<std::uint32_t>(m);
+      lights.emitters.push_back(std::move(emitter));
+    }
+  // Material index -> emitter index, in material order.
+  for (std::size_t e = 0; e < lights.emitters.size(); ++e) emitter_of[lights.emitters[e].material] = int(e);
+
+  for (std::size_t i = 0; i < flat.triangles.size(); ++i) {
+    const int e = emitter_of[flat.material_ids[i]];
+    if (e < 0) continue;
+    const Vec3u tri = flat.triangles[i];
+    EmitterTriangle t;
+    t.p0 = Vec3d(flat.positions[tri.x]);
+    t.p1 = Vec3d(flat.positions[tri.y]);
+    t.p2 = Vec3d(flat.positions[tri.z]);
+    const Vec3d cross = glm::cross(t.p1 - t.p0, t.p2 - t.p0);
+    const double twice_area = glm::length(cross);
+    if (!(twice_area > 0.0)) continue;  // flatten drops these already; float32 vertices are exact in double
+    t.normal = cross / twice_area;
+    t.area = 0.5 * twice_area;
+    t.primitive = static_cast<std::uint32_t>(i);
+    Emitter& emitter = lights.emitters[std::size_t(e)];
+    for (const Vec3d& p : {t.p0, t.p1, t.p2}) emitter.bounds.extend(p);
+    emitter.area += t.area;
+    emitter.triangles.push_back(t);
+  }
+
+  // Emitters whose triangles were all dropped (zero area) light nothing.
+  std::erase_if(lights.emitters, [](const Emitter& emitter) { return emitter.triangles.empty(); });
+  for (Emitter& emitter : lights.emitters) {
+    const Vec3d emission(scene.materials[emitter.material].emission);
+    emitter.power = std::numbers::pi * emitter.area * emission;
+    // One emission per emitter, so power is proportional to area: the cdf is the running area.
+    double running = 0.0;
+    emitter.cdf.reserve(emitter.triangles.size());
+    for (const EmitterTriangle& t : emitter.triangles) emitter.cdf.push_back(running += t.area);
+    for (double& c : emitter.cdf) c /= running;
+    emitter.cdf.back() = 1.0;
+    find_plane(emitter);
+    lights.triangle_count += emitter.triangles.size();
+  }
+  return lights;
+}
+
+bool in_front_of_emitter(const Emitter& emitter, const Vec3d& point) {
+  return !emitter.planar || glm::dot(emitter.plane_normal, point) > emitter.plane_offset;
+}
+
+bool emitter_below_horizon(const Emitter& emitter, const Vec3d& point, const Vec3d& normal) {
+  for (int corner = 0; corner < 8; ++corner) {
+    const Vec3d p((corner & 1) ? emitter.bounds.hi.x : emitter.bounds.lo.x,
+                  (corner & 2) ? emitter.bounds.hi.y : emitter.bounds.lo.y,
+                  (corner & 4) ? emitter.bounds.hi.z : emitter.bounds.lo.z);
+    if (glm::dot(normal, p - point) > 0.0) return false;
+  }
+  return true;
+}
+
+EmitterSampler::EmitterSampler(const Emitter& emitter, const FlatScene& flat, const Scene& scene,
+                               const TextureSampler* textures, const Vec3d& point, LightSampling sampling)
+    : emitter_(emitter), flat_(flat), scene_(scene), textures_(textures), point_(point), sampling_(sampling) {}
+
+EmitterSampler::View EmitterSampler::view_of(const EmitterTriangle& t) const {
+  View view;
+  if (sampling_ == LightSampling::area) return view;
+  // A triangle whose back faces the point sends nothing: area sampling finds that as cheaply.
+  if (sampling_ == LightSampling::automatic && !(glm::dot(t.normal, point_ - t.p0) > 0.0)) return view;
+  view.spherical = SphericalTriangle(point_, t.p0, t.p1, t.p2);
+  view.by_solid_angle = view.spherical.valid() &&
+                        (sampling_ == LightSampling::solid_angle ||
+                         (view.spherical.solid_angle() >= kMinSolidAngleSampling &&
+                          view.spherical.solid_angle() <= kMaxSolidAngleSampling));
+  return view;
+}
+
+LightSample EmitterSampler::sample(Vec2d u) {
+  const std::vector<double>& cdf = emitter_.cdf;
+  const auto it = std::upper_bound(cdf.begin(), cdf.end(), u.y);
+  const std::size_t i = std::min(std::size_t(it - cdf.begin()), cdf.size() - 1);
+  const double low = i > 0 ? cdf[i - 1] : 0.0;
+  const double probability = cdf[i] - low;
+  const double v = std::clamp((u.y - low) / probability, 0.0, 1.0 - 0x1p-53);
+  const EmitterTriangle& t = emitter_.triangles[i];
+  View uncached;
+  const View* view = &uncached;
+  if (i < kCachedTriangles) {
+    if (!cached_[i]) {
+      cache_[i] = view_of(t);
+      cached_[i] = true;
+    }
+    view = &cache_[i];
+  } else {
+    uncached = view_of(t);
+  }
+
+  LightSample sample;
+  Vec3d b;
+  if (view->by_solid_angle) {
+    const auto along = barycentrics_along(point_, view->spherical.sample({u.x, v}), t.p0, t.p1, t.p2);
+    if (!along) return sample;
+    b = *along;
+  } else {
+    b = sample_triangle_uniform({u.x, v});
+  }
+  sample.light_point = make_surface_point(t.p0, t.p1, t.p2, b.y, b.z);
+  const Vec3d offset = sample.light_point.point - point_;
+  sample.distance = glm::length(offset);
+  if (!(sample.distance > 0.0)) return sample;
+  sample.direction = offset / sample.distance;
+  sample.valid = true;
+  const double cos_emitter = -glm::dot(t.normal, sample.direction);
+  if (!(cos_emitter > 0.0)) return sample;  // the triangle's back faces the point: no radiance
+
+  const Material& material = scene_.materials[emitter_.material];
+  Vec3d radiance(material.emission);
+  if (textures_ && textures_->has_emission(emitter_.material) && !flat_.texcoords.empty()) {
+    const Vec3u tri = flat_.triangles[t.primitive];
+    const Vec2f uv = float(b.x) * flat_.texcoords[tri.x] + float(b.y) * flat_.texcoords[tri.y] +
+                     float(b.z) * flat_.texcoords[tri.z];
+    radiance *= Vec3d(textures_->emission(emitter_.material, uv));
+  }
+  // Solid-angle density of the direction: probability / solid angle, or by area
+  // probability / area * r^2 / cos(theta') (the change of measure dA = r^2 / cos(theta') d omega).
+  sample.radiance_over_pdf =
+      view->by_solid_angle
+          ? radiance * (view->spherical.solid_angle() / probability)
+          : radiance * (t.area * cos_emitter / (probability * sample.distance * sample.distance));
+  return sample;
+}
+
+Ray shadow_ray_to_sample(const RayOffset& policy, const Vec3f& origin, const LightSample& sample) {
+  const Vec3f target = offset_ray_origin(policy, sample.light_point, Vec3d(origin) - sample.light_point.point);
+  const Vec3d span = Vec3d(target) - Vec3d(origin);
+  const double length = glm::length(span);
+  Ray ray;
+  ray.origin = origin;
+  ray.direction = length > 0.0 ? Vec3f(span / length) : Vec3f(sample.direction);
+  ray.tfar = length > 0.0 ? static_cast<float>(shadow_ray_tfar(policy, Vec3d(origin), Vec3d(target))) : 0.0f;
+  return ray;
+}
+
+}  // namespace rt

@@ -1,0 +1,158 @@
+#include "rt/render/sampling.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace rt {
+
+namespace {
+
+// Kensler's hashed permutation of [0, length): element `i` of permutation number `pattern`, by
+// cycle-walking a bijective hash on the next power of two (Kensler 2013, listing 3).
+std::uint32_t permute(std::uint32_t i, std::uint32_t length, std::uint32_t pattern) {
+  std::uint32_t w = length - 1;
+  w |= w >> 1;
+  w |= w >> 2;
+  w |= w >> 4;
+  w |= w >> 8;
+  w |= w >> 16;
+  do {
+    i ^= pattern;
+    i *= 0xe170893du;
+    i ^= pattern >> 16;
+    i ^= (i & w) >> 4;
+    i ^= pattern >> 8;
+    i *= 0x0929eb3fu;
+    i ^= pattern >> 23;
+    i ^= (i & w) >> 1;
+    i *= 1u | pattern >> 27;
+    i *= 0x6935fa69u;
+    i ^= (i & w) >> 11;
+    i *= 0x74dcb303u;
+    i ^= (i & w) >> 2;
+    i *= 0x9e501cc3u;
+    i ^= (i & w) >> 2;
+    i *= 0xc860a3dfu;
+    i &= w;
+    i ^= i >> 5;
+  } while (i >= length);
+  return (i + pattern) % length;
+}
+
+// Kensler's hash of (i, pattern) to [0, 1) (listing 4), kept in double: 32 bits of jitter.
+double jitter(std::uint32_t i, std::uint32_t pattern) {
+  i ^= pattern;
+  i ^= i >> 17;
+  i ^= i >> 10;
+  i *= 0xb36534e5u;
+  i ^= i >> 12;
+  i ^= i >> 21;
+  i *= 0x93fc4795u;
+  i ^= 0xdf6e307fu;
+  i ^= i >> 17;
+  i *= 1u | pattern >> 18;
+  return double(i) * 0x1p-32;
+}
+
+// The angle between unit vectors, accurate over all of [0, pi] (unlike acos near 0 and pi).
+double angle_between(const Vec3d& a, const Vec3d& b) {
+  return std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b));
+}
+
+// The component of unit-length-or-not `v` orthogonal to unit `axis`, normalised.
+Vec3d orthogonal_unit(const Vec3d& v, const Vec3d& axis) { return glm::normalize(v - glm::dot(v, axis) * axis); }
+
+}  // namespace
+
+Vec2d cmj_sample(std::uint32_t index, std::uint32_t count, std::uint32_t pattern) {
+  // Kensler 2013, listing 5 ("cmj" for any count): a columns x rows grid with columns x rows >=
+  // count, index shuffled first so that every prefix of the pattern stays stratified.
+  const auto columns = static_cast<std::uint32_t>(std::sqrt(double(count)));
+  const std::uint32_t rows = (count + columns - 1) / columns;
+  const std::uint32_t s = permute(index, count, pattern * 0x51633e2du);
+  const std::uint32_t sx = permute(s % columns, columns, pattern * 0x68bc21ebu);
+  const std::uint32_t sy = permute(s / columns, rows, pattern * 0x02e5be93u);
+  const double jx = jitter(s, pattern * 0x967a889bu), jy = jitter(s, pattern * 0x368cc8b7u);
+  return {std::min((sx + (sy + jx) / rows) / columns, 1.0 - 0x1p-53), std::min((s + jy) / count, 1.0 - 0x1p-53)};
+}
+
+Vec3d sample_triangle_uniform(Vec2d u) {
+  double b0, b1;
+  if (u.x < u.y) {
+    b0 = u.x / 2.0;
+    b1 = u.y - b0;
+  } else {
+    b1 = u.y / 2.0;
+    b0 = u.x - b1;
+  }
+  return {b0, b1, 1.0 - b0 - b1};
+}
+
+double triangle_solid_angle(const Vec3d& p, const Vec3d& a, const Vec3d& b, const Vec3d& c) {
+  const Vec3d va = glm::normalize(a - p), vb = glm::normalize(b - p), vc = glm::normalize(c - p);
+  // tan(omega / 2) = |va . (vb x vc)| / (1 + va.vb + vb.vc + vc.va) for unit vectors.
+  const double numerator = std::abs(glm::dot(va, glm::cross(vb, vc)));
+  const double denominator = 1.0 + glm::dot(va, vb) + glm::dot(vb, vc) + glm::dot(vc, va);
+  return 2.0 * std::atan2(numerator, denominator);
+}
+
+SphericalTriangle::SphericalTriangle(const Vec3d& p, const Vec3d& a, const Vec3d& b, const Vec3d& c) {
+  // Unit directions from p to the vertices.
+  const Vec3d da = a - p, db = b - p, dc = c - p;
+  const double la = glm::length(da), lb = glm::length(db), lc = glm::length(dc);
+  if (!(la > 0.0 && lb > 0.0 && lc > 0.0)) return;
+  const Vec3d A = da / la, B = db / lb, C = dc / lc;
+  // Normals of the great circles through each side; a zero one means two directions coincide or
+  // are opposite (p on a side's line).
+  const Vec3d n_ab = glm::cross(A, B), n_bc = glm::cross(B, C), n_ca = glm::cross(C, A);
+  const double l_ab = glm::length(n_ab), l_bc = glm::length(n_bc), l_ca = glm::length(n_ca);
+  if (!(l_ab > 0.0 && l_bc > 0.0 && l_ca > 0.0)) return;
+  // Interior angles at A, B, C: the angles between the planes of the sides that meet there.
+  const double alpha = angle_between(n_ab / l_ab, -n_ca / l_ca);
+  const double beta = angle_between(n_bc / l_bc, -n_ab / l_ab);
+  const double gamma = angle_between(n_ca / l_ca, -n_bc / l_bc);
+  const double area = alpha + beta + gamma - std::numbers::pi;
+  if (!(area > 0.0)) return;
+  A_ = A;
+  B_ = B;
+  C_perp_ = orthogonal_unit(C, A);
+  alpha_ = alpha;
+  cos_alpha_ = std::cos(alpha);
+  sin_alpha_ = std::sin(alpha);
+  cos_c_ = glm::dot(A, B);
+  area_ = area;
+}
+
+Vec3d SphericalTriangle::sample(Vec2d u) const {
+  // Arvo's first step: the sub-triangle A, B, C' of area u.x * area puts C' on the arc A C, at
+  // cos(angle A C') = q.
+  const double sub_area = u.x * area_;
+  const double s = std::sin(sub_area - alpha_), t = std::cos(sub_area - alpha_);
+  const double uu = t - cos_alpha_, vv = s + sin_alpha_ * cos_c_;
+  const double denominator = (vv * s + uu * t) * sin_alpha_;
+  const double q = denominator != 0.0 ? std::clamp(((vv * t - uu * s) * cos_alpha_ - vv) / denominator, -1.0, 1.0) : 1.0;
+  const Vec3d c_prime = q * A_ + std::sqrt(std::max(0.0, 1.0 - q * q)) * C_perp_;
+  // Second step: the direction on the arc B C' whose cosine to B is uniform between 1 and B.C'.
+  const double z = 1.0 - u.y * (1.0 - glm::dot(c_prime, B_));
+  return glm::normalize(z * B_ + std::sqrt(std::max(0.0, 1.0 - z * z)) * orthogonal_unit(c_prime, B_));
+}
+
+std::optional<Vec3d> barycentrics_along(const Vec3d& p, const Vec3d& w, const Vec3d& a, const Vec3d& b,
+                                        const Vec3d& c) {
+  const Vec3d e1 = b - a, e2 = c - a;
+  const Vec3d pv = glm::cross(w, e2);
+  const double determinant = glm::dot(e1, pv);
+  if (determinant == 0.0) return std::nullopt;
+  const Vec3d tv = p - a;
+  double b1 = std::clamp(glm::dot(tv, pv) / determinant, 0.0, 1.0);
+  double b2 = std::clamp(glm::dot(w, glm::cross(tv, e1)) / determinant, 0.0, 1.0);
+  if (b1 + b2 > 1.0) {
+    const double sum = b1 + b2;
+    b1 /= sum;
+    b2 /= sum;
+  }
+  return Vec3d(1.0 - b1 - b2, b1, b2);
+}
+
+}  // namespace rt
