@@ -129,16 +129,17 @@ TEST_CASE("OBJ scene: one model per material, MTL mapped, quads triangulated", "
     for (const rt::Vec3f& n : mesh.normals) CHECK(n == rt::Vec3f(0, 0, 1));
   }
 
-  // A map_Kd that cannot be read is reported and dropped; the camera and a headlight are made up
-  // and reported.
+  // A map_Kd that cannot be read is reported and dropped; the camera is made up and reported. The
+  // matte material's Ke makes it an area light, so no headlight is added.
   REQUIRE(report.warnings.size() == 1);
   CHECK_THAT(report.warnings[0], Catch::Contains("material 'mirror': map_Kd") && Catch::Contains("cannot be read"));
   CHECK(mirror.diffuse_texture.empty());
+  CHECK(matte.emits_light);
+  CHECK_FALSE(mirror.emits_light);
   CHECK(report.camera_framed);
-  CHECK(report.headlight_added);
+  CHECK_FALSE(report.headlight_added);
   CHECK(report.view == rt::Vec3d(0, 0, -1));
-  REQUIRE(scene.lights.size() == 1);
-  CHECK(scene.lights[0].position == rt::Vec4d(scene.camera.eye, 1.0));
+  CHECK(scene.lights.empty());
   CHECK(scene.camera.target == rt::Vec3d(0.5, 0.5, 0.0));
   CHECK(scene.camera.eye.z > 0.0);
 }

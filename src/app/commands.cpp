@@ -66,8 +66,11 @@ std::string default_output(const Scene& scene, const std::string& scene_path) {
 
 void warn_about_dropped_triangles(const Scene& scene, const FlatScene& flat, bool quiet) {
   if (flat.degenerate_triangles_dropped > 0 && !quiet)
-    fmt::print(stderr, "rt: warning: {}: dropped {} degenerate triangle(s) (zero area)\n", scene.source,
-               flat.degenerate_triangles_dropped);
+    fmt::print(stderr, "rt: warning: {}: dropped {} degenerate triangle(s) (zero area){}\n", scene.source,
+               flat.degenerate_triangles_dropped,
+               flat.degenerate_emitter_triangles_dropped == 0
+                   ? ""
+                   : fmt::format(", {} of them emissive (they emit no light)", flat.degenerate_emitter_triangles_dropped));
 }
 
 // SIGINT and SIGTERM during the render loop: the handler only records the signal; the loop polls
@@ -484,9 +487,20 @@ int run_info(const std::string& scene_path, const GltfOptions& gltf, const Scene
                                            l.spot_direction.y, l.spot_direction.z, l.spot_cos_inner, l.spot_cos_outer)
                              : "");
   }
+  const EffectsPlan plan = plan_effects(scene, flat, RayOffset{}, effects);
+  const std::size_t emitters = plan.area_lights ? plan.area_lights->emitters.size() : 0;
+  fmt::print("area lights {} emitter{}, {} emissive triangles\n", emitters, emitters == 1 ? "" : "s",
+             plan.area_lights ? plan.area_lights->triangle_count : 0);
+  for (std::size_t e = 0; e < emitters; ++e) {
+    const Emitter& emitter = plan.area_lights->emitters[e];
+    const Material& m = scene.materials[emitter.material];
+    fmt::print("  {:<16} {} triangle{}, area {:.6g}, radiance ({}, {}, {}){}, power ({:.6g}, {:.6g}, {:.6g}){}\n", m.name,
+               emitter.triangles.size(), emitter.triangles.size() == 1 ? "" : "s", emitter.area, m.emission.r,
+               m.emission.g, m.emission.b, m.emission_texture.empty() ? "" : " x texture " + m.emission_texture.path,
+               emitter.power.r, emitter.power.g, emitter.power.b, emitter.planar ? ", planar" : "");
+  }
   fmt::print("effects     (default ray offsets; see rt render --explain for the ray budget)\n");
-  for (const std::string& line : describe_plan(plan_effects(scene, flat, RayOffset{}, effects), scene))
-    fmt::print("  {}\n", line);
+  for (const std::string& line : describe_plan(plan, scene)) fmt::print("  {}\n", line);
   return 0;
 }
 

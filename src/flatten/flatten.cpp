@@ -96,6 +96,7 @@ void append_model(const Scene& scene, std::uint32_t node_index, const Model& mod
     const Vec3d p0(flat.positions[base + t.x]), p1(flat.positions[base + t.y]), p2(flat.positions[base + t.z]);
     if (glm::cross(p1 - p0, p2 - p0) == Vec3d(0.0)) {
       ++flat.degenerate_triangles_dropped;
+      if (scene.materials[model.material].emits_light) ++flat.degenerate_emitter_triangles_dropped;
       continue;
     }
     flat.triangles.push_back(flip ? Vec3u(base + t.x, base + t.z, base + t.y) : base + t);

@@ -642,7 +642,7 @@ void GltfReader::read_lights(const std::vector<Placed>& placed, Scene& scene) {
     }
     scene.lights.push_back(light);
   }
-  if (scene.lights.empty() && !has_emitters(scene)) {
+  if (scene.lights.empty() && !lit_by_own_emitters(scene)) {
     Light headlight;
     headlight.position = Vec4d(scene.camera.eye, 1.0);
     scene.lights.push_back(headlight);

@@ -262,7 +262,7 @@ Scene load_obj_scene(const std::string& path, LoadReport* report, const ObjLoadO
   r.camera_framed = true;
   scene.camera = frame_bounds(r.bounds, double(scene.settings.width) / scene.settings.height, r.view);
   // A file whose own surfaces emit is lit by them; otherwise a headlight shows the model.
-  if (!has_emitters(scene)) {
+  if (!lit_by_own_emitters(scene)) {
     scene.lights = {make_headlight(scene.camera)};
     r.headlight_added = true;
   }

@@ -145,12 +145,12 @@ std::uint64_t sum_over_instances(const Scene& scene, const std::function<std::ui
   return subtree[scene.root];
 }
 
-bool has_emitters(const Scene& scene) {
+bool lit_by_own_emitters(const Scene& scene) {
   for (const Node& node : scene.nodes)
     for (const Model& model : node.models) {
       if (!model.mesh || model.mesh->triangles.empty() || model.material >= scene.materials.size()) continue;
       const Material& material = scene.materials[model.material];
-      if (material.emits_light && material.emission != Color(0.0f)) return true;
+      if (material.emits_light && material.emission != Color(0.0f) && material.emission_texture.empty()) return true;
     }
   return false;
 }

@@ -38,6 +38,7 @@ struct FlatScene {
   std::vector<std::uint32_t> material_ids;   // one per triangle, index into Scene::materials
   std::vector<FlatSphere> spheres;
   std::size_t degenerate_triangles_dropped = 0;  // zero-area triangles left out (see flatten_scene)
+  std::size_t degenerate_emitter_triangles_dropped = 0;  // of those, triangles of emitting materials
 
   std::size_t triangle_count() const { return triangles.size(); }
   bool is_sphere(std::uint32_t primitive) const { return primitive >= triangles.size(); }

@@ -170,9 +170,12 @@ std::optional<CameraProblem> find_camera_problem(const Camera& camera);
 // Throws InputError naming `source`, "camera.<field>" and the reason if find_camera_problem finds one.
 void validate_camera(const Camera& camera, const std::string& source);
 
-// True when some node's triangle mesh uses a material that emits light (Material::emits_light with
-// a non-black emission): loaders then add no headlight, the scene's own surfaces light it.
-bool has_emitters(const Scene& scene);
+// True when some node's triangle mesh uses a material whose uniform emission lights the scene
+// (Material::emits_light, non-black emission, no emission texture): loaders then add no headlight,
+// the scene's own lamps light it. Emission modulated by a texture (a glow map, as on glTF's
+// DamagedHelmet and WaterBottle: mostly dark, with bright details) still lights the scene but does
+// not replace the headlight, which would otherwise leave such models black.
+bool lit_by_own_emitters(const Scene& scene);
 
 // Sum of weight(node) over every instance of every node reachable from scene.root, a shared
 // subgraph counted once per path that reaches it (as flattening expands it), saturating at

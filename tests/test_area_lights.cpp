@@ -1,0 +1,371 @@
+// Area lights: the sample patterns and warps against their defining properties, the estimator
+// against closed-form irradiance (Lambert's polygon formula) and against a point light in the
+// limit of a small emitter, one-sided emission, exact pruning, and the loaders' emitters.
+
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <numbers>
+#include <set>
+
+#include "rt/accel/accel.h"
+#include "rt/core/error.h"
+#include "rt/flatten/flatten.h"
+#include "rt/io/load_scene.h"
+#include "rt/render/area_lights.h"
+#include "rt/render/render.h"
+#include "rt/render/sampling.h"
+#include "rt/render/shade.h"
+#include "test_util.h"
+
+namespace {
+
+using rt::Color;
+using rt::Vec2d;
+using rt::Vec3d;
+using rt::Vec3f;
+
+constexpr double kPi = std::numbers::pi;
+
+// Lambert's formula (1760) for the cosine-weighted solid angle of a polygon seen from p with unit
+// normal n: integral of max(n.w, 0) over the directions w towards the polygon, when the polygon is
+// entirely above p's tangent plane: (1/2) |sum_i theta_i n . normalize(v_i x v_i+1)|, v_i the unit
+// directions to the vertices, theta_i the angle between consecutive ones.
+double lambert_cosine_solid_angle(const Vec3d& p, const Vec3d& n, const std::vector<Vec3d>& polygon) {
+  double sum = 0.0;
+  for (std::size_t i = 0; i < polygon.size(); ++i) {
+    const Vec3d a = glm::normalize(polygon[i] - p), b = glm::normalize(polygon[(i + 1) % polygon.size()] - p);
+    const Vec3d cross = glm::cross(a, b);
+    sum += std::atan2(glm::length(cross), glm::dot(a, b)) * glm::dot(n, glm::normalize(cross));
+  }
+  return 0.5 * std::abs(sum);
+}
+
+rt::Material diffuse_material(Vec3d diffuse, Vec3d specular = Vec3d(0.0), float shininess = 1.0f) {
+  rt::Material m;
+  m.name = "surface";
+  m.diffuse = Color(diffuse);
+  m.specular = Color(specular);
+  m.shininess = shininess;
+  m.reflective = Color(0.0f);
+  return m;
+}
+
+rt::Material emitter_material(Vec3d radiance) {
+  rt::Material m;
+  m.name = "lamp";
+  m.emission = Color(radiance);
+  m.emits_light = true;
+  m.reflective = Color(0.0f);
+  return m;
+}
+
+// A floor in z = 0 (material 0, facing +z) and the emitter polygon (material 1), a triangle or a
+// quad given counter-clockwise seen from its front, fanned into triangles.
+rt::Scene floor_and_emitter(const std::vector<Vec3f>& emitter, Vec3d radiance, rt::Material floor_material) {
+  std::vector<std::array<Vec3f, 3>> lamp;
+  for (std::size_t i = 1; i + 1 < emitter.size(); ++i) lamp.push_back({emitter[0], emitter[i], emitter[i + 1]});
+  rt::Scene scene = rt_test::make_scene(
+      {{rt_test::make_flat_mesh({{Vec3f(-50, -50, 0), Vec3f(50, -50, 0), Vec3f(0, 50, 0)}}), 0},
+       {rt_test::make_flat_mesh(lamp), 1}});
+  scene.materials = {floor_material, emitter_material(radiance)};
+  scene.camera.eye = Vec3d(0.0, -3.0, 3.0);
+  scene.camera.target = Vec3d(0.0);
+  scene.settings.max_depth = 0;
+  return scene;
+}
+
+// find_color along `ray` with the given sampling options, through Embree.
+struct Shader {
+  rt::Scene scene;
+  rt::FlatScene flat;
+  std::unique_ptr<rt::Accel> accel;
+
+  explicit Shader(rt::Scene s) : scene(std::move(s)), flat(rt::flatten_scene(scene)) {
+    accel = rt::build_accel(rt::AccelKind::embree, flat);
+  }
+  Color shade(Vec3f origin, Vec3f direction, const rt::EffectsOptions& options, rt::RayCounts& counts,
+              std::uint64_t seed = 1) const {
+    rt::Ray ray;
+    ray.origin = origin;
+    ray.direction = glm::normalize(direction);
+    const rt::EffectsPlan plan = rt::plan_effects(scene, flat, rt::RayOffset{}, options);
+    return rt::find_color(rt::ShadingContext{scene, flat, *accel, plan}, ray, 0, counts, Vec3d(1.0), seed);
+  }
+};
+
+}  // namespace
+
+TEST_CASE("cmj_sample: every point in [0, 1)^2, one per y stratum, columns balanced, deterministic") {
+  for (std::uint32_t count : {1u, 2u, 3u, 7u, 16u, 33u, 100u}) {
+    for (std::uint32_t pattern : {0u, 1u, 0xdeadbeefu}) {
+      const auto columns = static_cast<std::uint32_t>(std::sqrt(double(count)));
+      std::set<std::uint32_t> y_strata;
+      std::vector<std::uint32_t> per_column(columns, 0);
+      for (std::uint32_t i = 0; i < count; ++i) {
+        const Vec2d u = rt::cmj_sample(i, count, pattern);
+        REQUIRE(u.x >= 0.0);
+        REQUIRE(u.x < 1.0);
+        REQUIRE(u.y >= 0.0);
+        REQUIRE(u.y < 1.0);
+        y_strata.insert(static_cast<std::uint32_t>(u.y * count));
+        ++per_column[static_cast<std::uint32_t>(u.x * columns)];
+        CHECK(rt::cmj_sample(i, count, pattern) == u);
+      }
+      CHECK(y_strata.size() == count);
+      for (std::uint32_t n : per_column) CHECK(n <= (count + columns - 1) / columns);
+    }
+  }
+  CHECK(rt::cmj_sample(3, 16, 1) != rt::cmj_sample(3, 16, 2));
+}
+
+TEST_CASE("sample_triangle_uniform: barycentrics on the triangle, uniform (mean at the centroid)") {
+  constexpr int n = 256;
+  Vec3d mean(0.0);
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      const Vec3d b = rt::sample_triangle_uniform({(i + 0.5) / n, (j + 0.5) / n});
+      REQUIRE(std::min({b.x, b.y, b.z}) >= -1e-15);
+      REQUIRE(b.x + b.y + b.z == Approx(1.0).margin(1e-15));
+      mean += b / double(n * n);
+    }
+  CHECK(mean.x == Approx(1.0 / 3.0).margin(1e-4));
+  CHECK(mean.y == Approx(1.0 / 3.0).margin(1e-4));
+}
+
+TEST_CASE("SphericalTriangle: Girard's area is Van Oosterom's solid angle; samples hit the triangle, uniformly") {
+  struct Case {
+    Vec3d p, a, b, c;
+  };
+  const std::vector<Case> cases{
+      {Vec3d(0.0), Vec3d(1, 0, 1), Vec3d(0, 1, 1), Vec3d(-1, -1, 1)},         // large, around the axis
+      {Vec3d(0.1, 0.2, 0.0), Vec3d(-0.5, -0.5, 0.2), Vec3d(0.5, -0.5, 0.2), Vec3d(0, 0.5, 0.2)},  // close
+      {Vec3d(0.0), Vec3d(10, 0, 3), Vec3d(10.1, 0, 3), Vec3d(10, 0.1, 3.05)},  // small and oblique
+  };
+  for (const Case& c : cases) {
+    const rt::SphericalTriangle spherical(c.p, c.a, c.b, c.c);
+    REQUIRE(spherical.valid());
+    CHECK(spherical.solid_angle() == Approx(rt::triangle_solid_angle(c.p, c.a, c.b, c.c)).epsilon(1e-9));
+    // Uniform in solid angle: the mean of n.w over the samples times the solid angle is the
+    // cosine-weighted solid angle, which Lambert's formula gives exactly.
+    const Vec3d normal = glm::normalize(glm::cross(c.b - c.a, c.c - c.a));
+    const Vec3d up = glm::dot(normal, c.a - c.p) > 0.0 ? normal : -normal;  // towards the triangle
+    constexpr int n = 128;
+    double sum = 0.0;
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j) {
+        const Vec3d w = spherical.sample({(i + 0.5) / n, (j + 0.5) / n});
+        const auto b = rt::barycentrics_along(c.p, w, c.a, c.b, c.c);
+        REQUIRE(b);
+        const Vec3d hit = b->x * c.a + b->y * c.b + b->z * c.c;
+        CHECK(glm::dot(glm::normalize(hit - c.p), w) > 1.0 - 1e-9);  // w really points at the triangle
+        sum += glm::dot(up, w);
+      }
+    const double estimate = spherical.solid_angle() * sum / (n * n);
+    CHECK(estimate == Approx(lambert_cosine_solid_angle(c.p, up, {c.a, c.b, c.c})).epsilon(1e-3));
+  }
+  CHECK_FALSE(rt::SphericalTriangle(Vec3d(0.5, 0.0, 0.0), Vec3d(0.0), Vec3d(1, 0, 0), Vec3d(0, 1, 0)).valid());
+}
+
+TEST_CASE("an emissive quad lights a diffuse floor with C_d / pi * L_e * Lambert's cosine-weighted solid angle") {
+  // A 0.6 x 0.4 quad at height 0.5 facing down, radiance (2, 1, 0.5); the floor point is off to
+  // one side so the emitter is seen obliquely.
+  const std::vector<Vec3f> quad{Vec3f(-0.3f, -0.2f, 0.5f), Vec3f(-0.3f, 0.2f, 0.5f), Vec3f(0.3f, 0.2f, 0.5f),
+                                Vec3f(0.3f, -0.2f, 0.5f)};
+  const Vec3d radiance(2.0, 1.0, 0.5), albedo(0.8, 0.6, 0.4);
+  const Shader shader(floor_and_emitter(quad, radiance, diffuse_material(albedo)));
+  const Vec3d point(0.4, 0.1, 0.0);
+  std::vector<Vec3d> corners;
+  for (const Vec3f& v : quad) corners.emplace_back(v);
+  const Vec3d expected = albedo / kPi * radiance * lambert_cosine_solid_angle(point, Vec3d(0, 0, 1), corners);
+  for (rt::LightSampling sampling : {rt::LightSampling::area, rt::LightSampling::solid_angle, rt::LightSampling::automatic}) {
+    CAPTURE(rt::to_string(sampling));
+    rt::EffectsOptions options;
+    options.light_samples = 4096;
+    options.light_sampling = sampling;
+    rt::RayCounts counts;
+    const Color c = shader.shade(Vec3f(0.4f, 0.1f, 2.0f), Vec3f(0, 0, -1), options, counts);
+    CHECK(c.r == Approx(expected.r).epsilon(2e-3));
+    CHECK(c.g == Approx(expected.g).epsilon(2e-3));
+    CHECK(c.b == Approx(expected.b).epsilon(2e-3));
+    CHECK(counts.area_light == 4096);  // nothing in between, every sample traced
+  }
+  // Seen from above, the quad shows its back: no emission, and its black material is not lit.
+  rt::RayCounts counts;
+  rt::EffectsOptions options;
+  CHECK(shader.shade(Vec3f(0.0f, 0.0f, 2.0f), Vec3f(0, 0, -1), options, counts) == Color(0.0f));
+  CHECK(counts.skipped[int(rt::SkipRule::unlit_material)] == std::uint64_t(options.light_samples));
+  // A floor point outside the quad's shadow but below the quad's plane is lit; one above it (on a
+  // raised floor) is behind the emitter and gets no sample.
+  rt::Scene raised = shader.scene;
+  raised.nodes[0].models[0].mesh = std::make_shared<const rt::TriangleMesh>(
+      rt_test::make_flat_mesh({{Vec3f(-50, -50, 0.7f), Vec3f(50, -50, 0.7f), Vec3f(0, 50, 0.7f)}}));
+  const Shader above_lamp(raised);
+  counts = {};
+  CHECK(above_lamp.shade(Vec3f(2.0f, 0.0f, 2.0f), Vec3f(0, 0, -1), options, counts) == Color(0.0f));
+  CHECK(counts.skipped[int(rt::SkipRule::emitter_behind)] == std::uint64_t(options.light_samples));
+  CHECK(counts.area_light == 0);
+}
+
+TEST_CASE("a small emitter facing the point shades like the seed's point light of colour L_e A / pi") {
+  // A 2e-3-wide square at (0, 0, 1) facing down, over a Blinn-Phong floor; the point light is at its
+  // centre with quadratic attenuation, so both give L (C_d n.l + C_s max(n.h, 0)^s) / d^2.
+  const float h = 1e-3f;
+  const std::vector<Vec3f> square{Vec3f(-h, -h, 1), Vec3f(-h, h, 1), Vec3f(h, h, 1), Vec3f(h, -h, 1)};
+  const Vec3d radiance(3e5, 2e5, 1e5);
+  const rt::Material floor = diffuse_material(Vec3d(0.5, 0.4, 0.3), Vec3d(0.3), 20.0f);
+  const Shader with_emitter(floor_and_emitter(square, radiance, floor));
+  rt::Scene point_lit = floor_and_emitter(square, Vec3d(0.0), floor);
+  point_lit.materials[1].emits_light = false;
+  rt::Light light;
+  light.position = rt::Vec4d(0.0, 0.0, 1.0, 1.0);
+  light.color = Color(radiance * double(4 * h * h) / kPi);
+  light.attenuation = Vec3d(0.0, 0.0, 1.0);
+  point_lit.lights = {light};
+  const Shader with_point(point_lit);
+  rt::EffectsOptions options;
+  options.light_samples = 64;
+  for (const Vec3f& eye : {Vec3f(0.3f, 0.0f, 1.0f), Vec3f(-0.2f, 0.4f, 0.6f)}) {
+    // Shade the floor right below the light (n.l = 1, cos(theta') = 1) from two eyes.
+    rt::RayCounts counts;
+    const Vec3f direction = Vec3f(0.0f) - eye;
+    const Color area = with_emitter.shade(eye, direction, options, counts);
+    const Color point = with_point.shade(eye, direction, options, counts);
+    CHECK(area.r == Approx(point.r).epsilon(1e-4));
+    CHECK(area.g == Approx(point.g).epsilon(1e-4));
+    CHECK(area.b == Approx(point.b).epsilon(1e-4));
+  }
+}
+
+TEST_CASE("area lights: pruning changes no pixel, threads and regions change no pixel, the budget adds up") {
+  const std::vector<Vec3f> quad{Vec3f(-0.3f, -0.2f, 0.5f), Vec3f(-0.3f, 0.2f, 0.5f), Vec3f(0.3f, 0.2f, 0.5f),
+                                Vec3f(0.3f, -0.2f, 0.5f)};
+  rt::Scene scene = floor_and_emitter(quad, Vec3d(4.0), diffuse_material(Vec3d(0.7), Vec3d(0.2), 8.0f));
+  // A blocker between the quad and part of the floor, for penumbrae.
+  scene.nodes[0].models.push_back(
+      {std::make_shared<const rt::TriangleMesh>(rt_test::make_flat_mesh(
+           {{Vec3f(-0.1f, -0.1f, 0.25f), Vec3f(0.1f, -0.1f, 0.25f), Vec3f(0.0f, 0.1f, 0.25f)}})),
+       0});
+  scene.settings.width = 48;
+  scene.settings.height = 40;
+  const rt::FlatScene flat = rt::flatten_scene(scene);
+  const auto accel = rt::build_accel(rt::AccelKind::embree, flat);
+  rt::RenderOptions options;
+  options.effects.light_samples = 9;
+  const rt::RenderResult pruned = rt::render_image(scene, flat, *accel, options);
+  options.effects.prune = false;
+  const rt::RenderResult full = rt::render_image(scene, flat, *accel, options);
+  CHECK(pruned.image.pixels == full.image.pixels);
+  CHECK(full.rays.area_light > pruned.rays.area_light);
+
+  std::uint64_t hits = 0;
+  for (std::uint64_t h : pruned.rays.hits_per_depth) hits += h;
+  std::uint64_t area_skips = 0;
+  for (rt::SkipRule rule : {rt::SkipRule::emitter_off, rt::SkipRule::unlit_material, rt::SkipRule::emitter_behind,
+                            rt::SkipRule::emitter_below_horizon, rt::SkipRule::sample_zero,
+                            rt::SkipRule::sample_on_surface})
+    area_skips += pruned.rays.skipped[int(rule)];
+  CHECK(pruned.rays.area_light + area_skips == hits * 9);
+  CHECK(pruned.rays.shadow == 0);
+
+  options.effects.prune = true;
+  options.threads = 1;
+  options.tile_size = 7;
+  CHECK(rt::render_image(scene, flat, *accel, options).image.pixels == pruned.image.pixels);
+  options.region = rt::PixelRegion{5, 3, 30, 27};
+  const rt::RenderResult crop = rt::render_image(scene, flat, *accel, options);
+  for (int y = 3; y < 27; ++y)
+    for (int x = 5; x < 30; ++x) REQUIRE(crop.image.at(x - 5, y - 3) == pruned.image.at(x, y));
+  // The camera blocks' deferred shadow packets sum as find_color does, pixel by pixel.
+  options.region.reset();
+  const std::vector<std::string> trace = rt::trace_pixel(scene, flat, *accel, options, 20, 25);
+  CHECK(std::any_of(trace.begin(), trace.end(), [](const std::string& line) { return line.find("area light 0 sample") != std::string::npos; }));
+}
+
+TEST_CASE("emission is one-sided for emitters and two-sided self-emission otherwise") {
+  const std::vector<Vec3f> quad{Vec3f(-1, -1, 1), Vec3f(-1, 1, 1), Vec3f(1, 1, 1), Vec3f(1, -1, 1)};  // faces -z
+  const Shader shader(floor_and_emitter(quad, Vec3d(0.25, 0.5, 1.0), diffuse_material(Vec3d(0.0))));
+  rt::EffectsOptions options;
+  rt::RayCounts counts;
+  CHECK(shader.shade(Vec3f(0.1f, 0.1f, 0.5f), Vec3f(0, 0, 1), options, counts) == Color(0.25f, 0.5f, 1.0f));
+  CHECK(shader.shade(Vec3f(0.1f, 0.1f, 1.5f), Vec3f(0, 0, -1), options, counts) == Color(0.0f));
+  rt::Scene self_emitting = shader.scene;
+  self_emitting.materials[1].emits_light = false;  // the seed's emission: seen from both sides, lights nothing
+  const Shader seed(self_emitting);
+  CHECK(seed.shade(Vec3f(0.1f, 0.1f, 1.5f), Vec3f(0, 0, -1), options, counts) == Color(0.25f, 0.5f, 1.0f));
+  CHECK(seed.shade(Vec3f(0.3f, 0.3f, 0.9f), Vec3f(0, 0, -1), options, counts) == Color(0.0f));  // floor unlit
+}
+
+TEST_CASE("collect_area_lights: one emitter per emissive material, planar quads, spheres refused") {
+  const std::vector<Vec3f> quad{Vec3f(-1, -1, 1), Vec3f(-1, 1, 1), Vec3f(1, 1, 1), Vec3f(1, -1, 1)};
+  rt::Scene scene = floor_and_emitter(quad, Vec3d(1.0, 2.0, 3.0), diffuse_material(Vec3d(0.5)));
+  const rt::AreaLights lights = rt::collect_area_lights(scene, rt::flatten_scene(scene));
+  REQUIRE(lights.emitters.size() == 1);
+  const rt::Emitter& e = lights.emitters[0];
+  CHECK(e.triangles.size() == 2);
+  CHECK(e.area == Approx(4.0));
+  CHECK(e.power.b == Approx(kPi * 4.0 * 3.0));
+  CHECK(e.planar);
+  CHECK(e.plane_normal == Vec3d(0, 0, -1));
+  CHECK(e.cdf.back() == 1.0);
+  CHECK(rt::in_front_of_emitter(e, Vec3d(0, 0, 0.5)));
+  CHECK_FALSE(rt::in_front_of_emitter(e, Vec3d(0, 0, 1.0)));
+  CHECK(rt::emitter_below_horizon(e, Vec3d(0, 0, 2), Vec3d(0, 0, 1)));
+  CHECK_FALSE(rt::emitter_below_horizon(e, Vec3d(0, 0, 0), Vec3d(0, 0, 1)));
+
+  rt::Node sphere_node;
+  sphere_node.models.push_back({nullptr, 1, rt::Sphere{}});
+  scene.nodes.push_back(sphere_node);
+  scene.nodes[0].children.push_back(1);
+  CHECK_THROWS_WITH(rt::collect_area_lights(scene, rt::flatten_scene(scene)),
+                    Catch::Contains("'lamp' emits light and is used by a sphere"));
+}
+
+TEST_CASE("OBJ: Ke makes an area light and replaces the headlight; negative Ke is an error naming the line") {
+  rt_test::TempDir dir;
+  rt_test::write_file(dir.path() / "box.mtl", "newmtl white\nKd 0.8 0.8 0.8\nnewmtl lamp\nKd 0 0 0\nKe 5 4 3\n");
+  rt_test::write_file(dir.path() / "box.obj",
+                      "mtllib box.mtl\nv -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\n"
+                      "v -0.2 1 -0.2\nv 0.2 1 -0.2\nv 0.2 1 0.2\nv -0.2 1 0.2\n"
+                      "usemtl white\nf 1 4 3 2\nusemtl lamp\nf 5 6 7 8\n");
+  rt::LoadReport report;
+  const rt::Scene scene = rt::load_scene((dir.path() / "box.obj").string(), {}, &report);
+  CHECK(scene.lights.empty());
+  CHECK_FALSE(report.headlight_added);
+  REQUIRE(scene.materials.size() == 2);
+  CHECK(scene.materials[1].emits_light);
+  CHECK_FALSE(scene.materials[0].emits_light);
+  const rt::AreaLights lights = rt::collect_area_lights(scene, rt::flatten_scene(scene));
+  REQUIRE(lights.emitters.size() == 1);
+  CHECK(lights.emitters[0].plane_normal.y == Approx(-1.0));  // 5 6 7 8 winds clockwise seen from above
+
+  rt_test::write_file(dir.path() / "box.mtl", "newmtl white\nKd 0.8 0.8 0.8\nnewmtl lamp\nKe 5 -4 3\n");
+  CHECK_THROWS_WITH(rt::load_scene((dir.path() / "box.obj").string(), {}, &report),
+                    Catch::Contains("box.mtl:4:") && Catch::Contains("'Ke': '-4' is negative"));
+}
+
+TEST_CASE("native format: \"emitter\": true makes an area light; a non-boolean is an error naming the key") {
+  rt_test::TempDir dir;
+  const std::string scene_text = R"({
+    "camera": {"eye": [0, -3, 3], "target": [0, 0, 0], "fovy": 40},
+    "materials": {"floor": {"diffuse": 0.5}, "lamp": {"emission": [4, 4, 4], "emitter": EMITTER}},
+    "geometries": {"quad": {"type": "mesh", "positions": [[-1, -1, 1], [-1, 1, 1], [1, 1, 1], [1, -1, 1]],
+                            "triangles": [[0, 1, 2], [0, 2, 3]]},
+                   "ground": {"type": "mesh", "positions": [[-5, -5, 0], [5, -5, 0], [5, 5, 0], [-5, 5, 0]],
+                              "triangles": [[0, 1, 2], [0, 2, 3]]}},
+    "nodes": [{"models": [{"geometry": "quad", "material": "lamp"}, {"geometry": "ground", "material": "floor"}]}]
+  })";
+  const auto with = [&](const std::string& value) {
+    std::string text = scene_text;
+    text.replace(text.find("EMITTER"), 7, value);
+    rt_test::write_file(dir.path() / "s.json", text);
+    return (dir.path() / "s.json").string();
+  };
+  const rt::Scene scene = rt::load_scene(with("true"));
+  CHECK(scene.materials[1].emits_light);
+  CHECK(rt::collect_area_lights(scene, rt::flatten_scene(scene)).emitters.size() == 1);
+  CHECK_FALSE(rt::load_scene(with("false")).materials[1].emits_light);
+  CHECK_THROWS_WITH(rt::load_scene(with("1")), Catch::Contains("/materials/lamp/emitter: expected true or false"));
+}
