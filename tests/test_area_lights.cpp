@@ -98,7 +98,7 @@ struct Shader {
 
 }  // namespace
 
-TEST_CASE("cmj_sample: every point in [0, 1)^2, one per y stratum, columns balanced, deterministic") {
+TEST_CASE("cmj_sample: every point in the unit square, one per y stratum, columns balanced, deterministic") {
   for (std::uint32_t count : {1u, 2u, 3u, 7u, 16u, 33u, 100u}) {
     for (std::uint32_t pattern : {0u, 1u, 0xdeadbeefu}) {
       const auto columns = static_cast<std::uint32_t>(std::sqrt(double(count)));
@@ -135,7 +135,7 @@ TEST_CASE("sample_triangle_uniform: barycentrics on the triangle, uniform (mean 
   CHECK(mean.y == Approx(1.0 / 3.0).margin(1e-4));
 }
 
-TEST_CASE("SphericalTriangle: Girard's area is Van Oosterom's solid angle; samples hit the triangle, uniformly") {
+TEST_CASE("SphericalTriangle: Girard's area is Van Oosterom's solid angle, samples hit the triangle, uniformly") {
   struct Case {
     Vec3d p, a, b, c;
   };
@@ -323,7 +323,7 @@ TEST_CASE("collect_area_lights: one emitter per emissive material, planar quads,
                     Catch::Contains("'lamp' emits light and is used by a sphere"));
 }
 
-TEST_CASE("OBJ: Ke makes an area light and replaces the headlight; negative Ke is an error naming the line") {
+TEST_CASE("OBJ: Ke makes an area light and replaces the headlight, negative Ke is an error naming the line") {
   rt_test::TempDir dir;
   rt_test::write_file(dir.path() / "box.mtl", "newmtl white\nKd 0.8 0.8 0.8\nnewmtl lamp\nKd 0 0 0\nKe 5 4 3\n");
   rt_test::write_file(dir.path() / "box.obj",
@@ -346,7 +346,7 @@ TEST_CASE("OBJ: Ke makes an area light and replaces the headlight; negative Ke i
                     Catch::Contains("box.mtl:4:") && Catch::Contains("'Ke': '-4' is negative"));
 }
 
-TEST_CASE("native format: \"emitter\": true makes an area light; a non-boolean is an error naming the key") {
+TEST_CASE("native format: the emitter key makes an area light, a non-boolean is an error naming the key") {
   rt_test::TempDir dir;
   const std::string scene_text = R"({
     "camera": {"eye": [0, -3, 3], "target": [0, 0, 0], "fovy": 40},

@@ -57,7 +57,7 @@ TEST_CASE("compare_images: identical, constant offset, one pixel, clamping, size
 }
 
 TEST_CASE("plan_sweep: one knob at a time, everything else at the defaults", "[perf]") {
-  const auto points = rt::perf::plan_sweep(rt::perf::knob_names(), 5, true);
+  const auto points = rt::perf::plan_sweep(rt::perf::knob_names(), 5, true, true);
   const rt::perf::RenderConfig base = rt::perf::default_config(5);
   int defaults = 0;
   for (const auto& p : points) {
@@ -72,7 +72,9 @@ TEST_CASE("plan_sweep: one knob at a time, everything else at the defaults", "[p
                     (p.config.accel.embree_kernel != base.accel.embree_kernel) +
                     (rt::to_string(p.config.ray_offset) != rt::to_string(base.ray_offset)) +
                     (p.config.effects.min_throughput != base.effects.min_throughput) +
-                    (p.config.effects.min_light_contribution != base.effects.min_light_contribution);
+                    (p.config.effects.min_light_contribution != base.effects.min_light_contribution) +
+                    (p.config.effects.light_samples != base.effects.light_samples) +
+                    (p.config.effects.light_sampling != base.effects.light_sampling);
     CHECK(differing == (p.is_default ? 0 : 1));
   }
   CHECK(defaults == int(rt::perf::knob_names().size()));  // each knob's sweep contains the default once
@@ -83,12 +85,16 @@ TEST_CASE("plan_sweep: one knob at a time, everything else at the defaults", "[p
   CHECK(count("max_depth") == 9);
   CHECK(count("sphere_tessellation") == 7);
   CHECK(count("ray_offset") == 6);
-  CHECK(rt::perf::plan_sweep({"sphere_tessellation"}, 5, false).empty());  // no spheres, nothing to sweep
-  CHECK(rt::perf::plan_sweep({"max_depth"}, 12, false).size() == 10);      // 0..8 and the scene's own 12
-  CHECK_THROWS_AS(rt::perf::plan_sweep({"spp", "colour"}, 5, false), std::invalid_argument);
+  CHECK(count("light_samples") == 5);
+  CHECK(count("light_sampling") == 3);
+  CHECK(rt::perf::plan_sweep({"sphere_tessellation"}, 5, false, false).empty());  // no spheres, nothing to sweep
+  CHECK(rt::perf::plan_sweep({"light_samples", "light_sampling"}, 5, false, false).empty());  // no emitters
+  CHECK(rt::perf::plan_sweep({"max_depth"}, 12, false, false).size() == 10);      // 0..8 and the scene's own 12
+  CHECK_THROWS_AS(rt::perf::plan_sweep({"spp", "colour"}, 5, false, false), std::invalid_argument);
 
-  const rt::perf::RenderConfig truth = rt::perf::truth_config(5, 10, 256);
+  const rt::perf::RenderConfig truth = rt::perf::truth_config(5, 10, 256, 64);
   CHECK(truth.spp == 256);
+  CHECK(truth.effects.light_samples == 64);
   CHECK(truth.max_depth == 10);
   CHECK(truth.accel.embree_kernel == rt::EmbreeKernel::watertight);
   CHECK(truth.sphere_tessellation == 0);
@@ -96,7 +102,7 @@ TEST_CASE("plan_sweep: one knob at a time, everything else at the defaults", "[p
 
 TEST_CASE("accuracy CSV and Markdown rows carry every column", "[perf]") {
   rt::perf::Measurement m;
-  m.point = rt::perf::plan_sweep({"ray_offset"}, 5, false).front();
+  m.point = rt::perf::plan_sweep({"ray_offset"}, 5, false, false).front();
   m.time_median = 0.5;
   m.time_min = 0.25;
   m.time_max = 0.75;
@@ -119,7 +125,7 @@ TEST_CASE("accuracy CSV and Markdown rows carry every column", "[perf]") {
 
 TEST_CASE("fit_spp_slope recovers a power law from the points the truth does not bias", "[perf]") {
   std::vector<rt::perf::Measurement> points;
-  for (const rt::perf::SweepPoint& point : rt::perf::plan_sweep({"spp", "max_depth"}, 5, false)) {
+  for (const rt::perf::SweepPoint& point : rt::perf::plan_sweep({"spp", "max_depth"}, 5, false, false)) {
     rt::perf::Measurement m;
     m.point = point;
     // RMSE = 0.02 spp^-0.75 on the spp points; the max_depth points must be ignored.

@@ -29,6 +29,7 @@ const std::vector<int> kSppValues{1, 4, 16, 64};
 const std::vector<int> kSphereTessellations{8, 16, 32, 64, 128, 256};
 const std::vector<std::string> kRayOffsets{"fixed:1e-2", "fixed:1e-3", "fixed:1e-4", "fixed:1e-5", "fixed:1e-6", "robust"};
 const std::vector<double> kThresholds{0.0, 0.001, 0.01, 0.05, 0.1};
+const std::vector<int> kLightSampleValues{1, 4, 16, 64, 256};
 constexpr int kMaxDepthSwept = 8;
 
 std::string format_threshold(double value) { return value == 0.0 ? "0" : fmt::format("{:g}", value); }
@@ -87,6 +88,7 @@ struct AccuracyArgs {
   std::optional<int> width, height;
   int truth_spp = 256;
   int truth_depth = 10;
+  int truth_light_samples = 4096;  // area-light samples per pixel of both ground truths
   int threads = 0;
   std::vector<std::string> knobs;
   bool plots = true;
@@ -107,9 +109,11 @@ int run_accuracy(const AccuracyArgs& args) {
   if (args.height) scene.settings.height = *args.height;
   validate_scene(scene);
   const int scene_depth = scene.settings.max_depth;
-  const bool has_spheres = !flatten_scene(scene).spheres.empty();
+  const FlatScene flat = flatten_scene(scene);
+  const bool has_spheres = !flat.spheres.empty();
+  const bool has_emitters = !collect_area_lights(scene, flat).empty();
   const std::vector<SweepPoint> points =
-      plan_sweep(args.knobs.empty() ? knob_names() : args.knobs, scene_depth, has_spheres);
+      plan_sweep(args.knobs.empty() ? knob_names() : args.knobs, scene_depth, has_spheres, has_emitters);
 
   if (args.truth_spp <= kSppValues.back() &&
       std::any_of(points.begin(), points.end(), [](const SweepPoint& p) { return p.knob == "spp"; }))
@@ -117,8 +121,13 @@ int run_accuracy(const AccuracyArgs& args) {
                "shares the truth's samples and its error is not meaningful\n", args.truth_spp, kSppValues.back());
   fmt::print(stderr, "rt-perf: {} at {}x{}: ground truth at {} spp, depth {}\n", scene.source, scene.settings.width,
              scene.settings.height, args.truth_spp, std::max(scene_depth, args.truth_depth));
-  const RenderConfig truth_many_config = truth_config(scene_depth, args.truth_depth, args.truth_spp);
-  const RenderConfig truth_one_config = truth_config(scene_depth, args.truth_depth, 1);
+  // Both truths take truth_light_samples area-light samples per pixel: spread over the camera
+  // samples of the many-sample truth (at least the default per camera sample), all on the pixel
+  // centre's hit for the 1-spp one.
+  const RenderConfig truth_many_config =
+      truth_config(scene_depth, args.truth_depth, args.truth_spp,
+                   std::max(EffectsOptions::kDefaultLightSamples, args.truth_light_samples / args.truth_spp));
+  const RenderConfig truth_one_config = truth_config(scene_depth, args.truth_depth, 1, args.truth_light_samples);
   const Prepared truth_scene = prepare(scene, truth_many_config);
   const Rendered truth_many = render_with(truth_scene, truth_many_config, args.threads);
   const Rendered truth_one = render_with(truth_scene, truth_one_config, args.threads);
@@ -157,9 +166,12 @@ int run_accuracy(const AccuracyArgs& args) {
   const std::string header = fmt::format(
       "Scene `{}`, {}x{}, {} render runs per point (median [min, max] render seconds), {} threads. Ground truth: "
       "Embree watertight kernel, robust, high-quality BVH, exact spheres, robust offsets, depth {}; {} spp for the "
-      "spp sweep, 1 spp for the others.\n\n",
+      "spp sweep, 1 spp for the others{}.\n\n",
       scene.source, scene.settings.width, scene.settings.height, args.runs,
-      args.threads > 0 ? fmt::to_string(args.threads) : "all", std::max(scene_depth, args.truth_depth), args.truth_spp);
+      args.threads > 0 ? fmt::to_string(args.threads) : "all", std::max(scene_depth, args.truth_depth), args.truth_spp,
+      has_emitters ? fmt::format("; {} area-light samples per pixel in both ({} per camera sample in the first)",
+                                 args.truth_light_samples, truth_many_config.effects.light_samples)
+                   : "");
   std::string summary;
   if (const std::optional<double> slope = fit_spp_slope(measurements, args.truth_spp))
     summary = fmt::format(
@@ -185,7 +197,8 @@ int run_accuracy(const AccuracyArgs& args) {
 const std::vector<std::string>& knob_names() {
   static const std::vector<std::string> names{"spp",           "max_depth",      "sphere_tessellation",
                                               "embree_robust", "embree_quality", "embree_kernel",
-                                              "ray_offset",    "min_throughput", "min_light"};
+                                              "ray_offset",    "min_throughput", "min_light",
+                                              "light_samples", "light_sampling"};
   return names;
 }
 
@@ -195,16 +208,18 @@ RenderConfig default_config(int scene_depth) {
   return config;
 }
 
-RenderConfig truth_config(int scene_depth, int truth_depth, int spp) {
+RenderConfig truth_config(int scene_depth, int truth_depth, int spp, int light_samples) {
   RenderConfig config = default_config(std::max(scene_depth, truth_depth));
   config.spp = spp;
+  config.effects.light_samples = light_samples;
   config.accel.embree_robust = true;
   config.accel.embree_quality = EmbreeQuality::high;
   config.accel.embree_kernel = EmbreeKernel::watertight;
   return config;
 }
 
-std::vector<SweepPoint> plan_sweep(const std::vector<std::string>& knobs, int scene_depth, bool has_spheres) {
+std::vector<SweepPoint> plan_sweep(const std::vector<std::string>& knobs, int scene_depth, bool has_spheres,
+                                   bool has_emitters) {
   for (const std::string& knob : knobs)
     if (std::find(knob_names().begin(), knob_names().end(), knob) == knob_names().end())
       throw std::invalid_argument(fmt::format("unknown knob '{}' (known: {})", knob, fmt::join(knob_names(), ", ")));
@@ -218,7 +233,9 @@ std::vector<SweepPoint> plan_sweep(const std::vector<std::string>& knobs, int sc
                             config.accel.embree_kernel == base.accel.embree_kernel &&
                             to_string(config.ray_offset) == to_string(base.ray_offset) &&
                             config.effects.min_throughput == base.effects.min_throughput &&
-                            config.effects.min_light_contribution == base.effects.min_light_contribution;
+                            config.effects.min_light_contribution == base.effects.min_light_contribution &&
+                            config.effects.light_samples == base.effects.light_samples &&
+                            config.effects.light_sampling == base.effects.light_sampling;
     points.push_back({knob, value, is_default, config, knob == "spp" ? "spp" : "1spp"});
   };
   for (const std::string& knob : knob_names()) {
@@ -249,6 +266,13 @@ std::vector<SweepPoint> plan_sweep(const std::vector<std::string>& knobs, int sc
       for (double t : kThresholds) c.effects.min_throughput = t, add(knob, format_threshold(t), c);
     } else if (knob == "min_light") {
       for (double t : kThresholds) c.effects.min_light_contribution = t, add(knob, format_threshold(t), c);
+    } else if (knob == "light_samples") {
+      if (!has_emitters) continue;
+      for (int n : kLightSampleValues) c.effects.light_samples = n, add(knob, fmt::to_string(n), c);
+    } else if (knob == "light_sampling") {
+      if (!has_emitters) continue;
+      for (LightSampling m : {LightSampling::area, LightSampling::solid_angle, LightSampling::automatic})
+        c.effects.light_sampling = m, add(knob, std::string(to_string(m)), c);
     }
   }
   return points;
@@ -315,6 +339,10 @@ std::function<int()> add_accuracy_command(CLI::App& app) {
       ->capture_default_str();
   command->add_option("--truth-depth", args->truth_depth, "Reflection depth of the ground truth (at least the scene's)")
       ->check(CLI::Range(0, kMaxReflectionDepth))
+      ->capture_default_str();
+  command->add_option("--truth-light-samples", args->truth_light_samples,
+                      "Area-light samples per pixel of the ground truths (scenes with emitters)")
+      ->check(CLI::Range(1, 1 << 20))
       ->capture_default_str();
   command->add_option("--threads", args->threads, "Render threads (0 = all cores)")->check(CLI::Range(0, 1024));
   command->add_option("--knobs", args->knobs, "Only these knobs (default: all)")

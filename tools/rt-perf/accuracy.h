@@ -38,7 +38,7 @@ struct SweepPoint {
 };
 
 // Knob names, in the order they are swept: spp, max_depth, sphere_tessellation, embree_robust,
-// embree_quality, embree_kernel, ray_offset, min_throughput, min_light.
+// embree_quality, embree_kernel, ray_offset, min_throughput, min_light, light_samples, light_sampling.
 const std::vector<std::string>& knob_names();
 
 // The renderer's defaults for a scene whose own max depth is `scene_depth`.
@@ -46,14 +46,17 @@ RenderConfig default_config(int scene_depth);
 
 // The ground truth: Embree with the watertight kernel (hits bit-identical to the double-precision
 // reference), robust mode, high-quality BVH, exact spheres, robust offsets, no approximation,
-// depth max(scene_depth, truth_depth), `spp` samples per pixel.
-RenderConfig truth_config(int scene_depth, int truth_depth, int spp);
+// depth max(scene_depth, truth_depth), `spp` samples per pixel, `light_samples` area-light samples
+// per emitter per hit.
+RenderConfig truth_config(int scene_depth, int truth_depth, int spp, int light_samples);
 
 // The points of the sweeps for `knobs` (a subset of knob_names; throws std::invalid_argument
-// naming an unknown one). sphere_tessellation is swept only when the scene has spheres.
+// naming an unknown one). sphere_tessellation is swept only when the scene has spheres, light_samples
+// and light_sampling only when it has emitters.
 // Errors of the spp sweep are measured against the many-sample truth; all others against the
 // truth rendered at 1 sample per pixel, so that aliasing does not swamp what the knob changes.
-std::vector<SweepPoint> plan_sweep(const std::vector<std::string>& knobs, int scene_depth, bool has_spheres);
+std::vector<SweepPoint> plan_sweep(const std::vector<std::string>& knobs, int scene_depth, bool has_spheres,
+                                   bool has_emitters);
 
 // One measured point, as a CSV row: the header is csv_header().
 struct Measurement {
