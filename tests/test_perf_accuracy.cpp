@@ -63,7 +63,9 @@ TEST_CASE("plan_sweep: one knob at a time, everything else at the defaults", "[p
   for (const auto& p : points) {
     INFO(p.knob << " = " << p.value);
     defaults += p.is_default;
-    CHECK(p.truth == (p.knob == "spp" ? "spp" : "1spp"));
+    CHECK(p.truth == (p.knob == "spp"                                            ? "spp"
+                      : p.knob == "light_samples" || p.knob == "light_sampling" ? "light"
+                                                                                 : "1spp"));
     // Exactly one setting differs from the defaults, the knob's own (or none at its default value).
     int differing = (p.config.spp != base.spp) + (p.config.max_depth != base.max_depth) +
                     (p.config.sphere_tessellation != base.sphere_tessellation) +

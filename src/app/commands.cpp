@@ -317,9 +317,11 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
     stats["degenerate_triangles_dropped"] = flat.degenerate_triangles_dropped;
     stats["non_finite_samples"] = result.non_finite_samples;
     stats["lights"] = scene.lights.size();
+    stats["emitters"] = result.plan.area_lights ? result.plan.area_lights->emitters.size() : 0;
     stats["rays"] = {{"camera", result.rays.camera},
                      {"shadow", result.rays.shadow},
                      {"reflection", result.rays.reflection},
+                     {"area_light", result.rays.area_light},
                      {"total", result.rays.total()}};
     stats["effects"] = effects_json(result.plan, scene);
     stats["ray_budget"] = ray_budget_json(result, scene);

@@ -132,6 +132,15 @@ int run_accuracy(const AccuracyArgs& args) {
   const Rendered truth_many = render_with(truth_scene, truth_many_config, args.threads);
   const Rendered truth_one = render_with(truth_scene, truth_one_config, args.threads);
   fmt::print(stderr, "rt-perf: ground truths took {:.2f} s and {:.2f} s\n", truth_many.render_s, truth_one.render_s);
+  // The light-sampling knobs' truth: the defaults but for truth_light_samples samples, so that their
+  // error is the light sampling's alone, not also the intersection kernel's at silhouettes.
+  std::optional<Rendered> truth_light;
+  if (std::any_of(points.begin(), points.end(), [](const SweepPoint& p) { return p.truth == "light"; })) {
+    RenderConfig config = default_config(scene_depth);
+    config.effects.light_samples = args.truth_light_samples;
+    truth_light = render_with(prepare(scene, config), config, args.threads);
+    fmt::print(stderr, "rt-perf: light-sampling truth took {:.2f} s\n", truth_light->render_s);
+  }
   write_image(truth_many.image, (fs::path(args.out) / "truth.exr").string());
   write_image(truth_many.image, (fs::path(args.out) / "truth.png").string());
 
@@ -153,7 +162,9 @@ int run_accuracy(const AccuracyArgs& args) {
     m.time_max = *std::max_element(times.begin(), times.end());
     m.build_median = median(builds);
     m.rays = last.rays;
-    m.error = compare_images(last.image, point.truth == "spp" ? truth_many.image : truth_one.image);
+    m.error = compare_images(last.image, point.truth == "spp"     ? truth_many.image
+                                         : point.truth == "light" ? truth_light->image
+                                                                  : truth_one.image);
     fmt::print(stderr, "[{}/{}] {} = {}: {:.3f} s, {} rays, rmse {:.3g}, {:.2f}% pixels off by > 1/255\n", i + 1,
                points.size(), point.knob, point.value, m.time_median, m.rays, m.error.rmse, m.error.pct_over_1_255);
     measurements.push_back(m);
@@ -169,8 +180,11 @@ int run_accuracy(const AccuracyArgs& args) {
       "spp sweep, 1 spp for the others{}.\n\n",
       scene.source, scene.settings.width, scene.settings.height, args.runs,
       args.threads > 0 ? fmt::to_string(args.threads) : "all", std::max(scene_depth, args.truth_depth), args.truth_spp,
-      has_emitters ? fmt::format("; {} area-light samples per pixel in both ({} per camera sample in the first)",
-                                 args.truth_light_samples, truth_many_config.effects.light_samples)
+      has_emitters ? fmt::format("; {} area-light samples per pixel in both ({} per camera sample in the first). The "
+                                 "light_samples and light_sampling points are compared with the defaults at {} light "
+                                 "samples (1 spp)",
+                                 args.truth_light_samples, truth_many_config.effects.light_samples,
+                                 args.truth_light_samples)
                    : "");
   std::string summary;
   if (const std::optional<double> slope = fit_spp_slope(measurements, args.truth_spp))
@@ -236,7 +250,8 @@ std::vector<SweepPoint> plan_sweep(const std::vector<std::string>& knobs, int sc
                             config.effects.min_light_contribution == base.effects.min_light_contribution &&
                             config.effects.light_samples == base.effects.light_samples &&
                             config.effects.light_sampling == base.effects.light_sampling;
-    points.push_back({knob, value, is_default, config, knob == "spp" ? "spp" : "1spp"});
+    const bool light = knob == "light_samples" || knob == "light_sampling";
+    points.push_back({knob, value, is_default, config, knob == "spp" ? "spp" : light ? "light" : "1spp"});
   };
   for (const std::string& knob : knob_names()) {
     if (std::find(knobs.begin(), knobs.end(), knob) == knobs.end()) continue;

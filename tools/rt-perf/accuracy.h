@@ -28,7 +28,8 @@ struct RenderConfig {
 
 // One point of a sweep: `knob` set to `value` (as the CSV names them), every other setting at
 // the renderer's default. `truth` says which ground truth it is compared with ("spp" for the
-// samples-per-pixel sweep, "1spp" for the others, see plan_sweep).
+// samples-per-pixel sweep, "light" for the area-light sampling knobs, "1spp" for the others, see
+// plan_sweep).
 struct SweepPoint {
   std::string knob;
   std::string value;
@@ -53,7 +54,9 @@ RenderConfig truth_config(int scene_depth, int truth_depth, int spp, int light_s
 // The points of the sweeps for `knobs` (a subset of knob_names; throws std::invalid_argument
 // naming an unknown one). sphere_tessellation is swept only when the scene has spheres, light_samples
 // and light_sampling only when it has emitters.
-// Errors of the spp sweep are measured against the many-sample truth; all others against the
+// Errors of the spp sweep are measured against the many-sample truth; those of light_samples and
+// light_sampling against the defaults with many light samples (so the intersection kernel's
+// differences at silhouettes do not swamp the light sampling's noise); all others against the
 // truth rendered at 1 sample per pixel, so that aliasing does not swamp what the knob changes.
 std::vector<SweepPoint> plan_sweep(const std::vector<std::string>& knobs, int scene_depth, bool has_spheres,
                                    bool has_emitters);
