@@ -11,13 +11,17 @@
 #include <set>
 
 #include "rt/accel/accel.h"
+#include <glm/gtc/matrix_transform.hpp>
+
 #include "rt/core/error.h"
+#include "rt/core/memory.h"
 #include "rt/flatten/flatten.h"
 #include "rt/io/load_scene.h"
 #include "rt/render/area_lights.h"
 #include "rt/render/render.h"
 #include "rt/render/sampling.h"
 #include "rt/render/shade.h"
+#include "rt/scene/shapes.h"
 #include "test_util.h"
 
 namespace {
@@ -368,4 +372,35 @@ TEST_CASE("native format: the emitter key makes an area light, a non-boolean is 
   CHECK(rt::collect_area_lights(scene, rt::flatten_scene(scene)).emitters.size() == 1);
   CHECK_FALSE(rt::load_scene(with("false")).materials[1].emits_light);
   CHECK_THROWS_WITH(rt::load_scene(with("1")), Catch::Contains("/materials/lamp/emitter: expected true or false"));
+}
+
+TEST_CASE("a lamp of thousands of triangles is sampled by power: a tessellated sphere lights like the sphere") {
+  // A Lambertian sphere of radius R and radiance L seen from a point at distance d, wholly above its
+  // horizon, gives irradiance pi L (R/d)^2; a diffuse floor of albedo C_d then has radiance
+  // C_d L (R/d)^2. The inscribed UV sphere of 64 x 32 subtends about 0.3% less.
+  constexpr double radius = 0.2, distance = 1.0;
+  rt::Scene scene = floor_and_emitter({Vec3f(0, 0, 5), Vec3f(0.1f, 0, 5), Vec3f(0, 0.1f, 5)}, Vec3d(0.0),
+                                      diffuse_material(Vec3d(0.5)));
+  scene.materials[1] = emitter_material(Vec3d(3.0, 2.0, 1.0));
+  scene.nodes[0].models.pop_back();  // the placeholder emitter
+  rt::Node lamp;
+  lamp.parent_from_node = glm::translate(rt::Mat4d(1.0), Vec3d(0.0, 0.0, distance));
+  lamp.models.push_back({std::make_shared<const rt::TriangleMesh>(rt::make_sphere_mesh(radius, 64, 32)), 1});
+  scene.nodes.push_back(lamp);
+  scene.nodes[0].children.push_back(1);
+  const Shader shader(scene);
+  rt::EffectsOptions options;
+  options.light_samples = 4096;
+  rt::RayCounts counts;
+  const Color c = shader.shade(Vec3f(0.3f, 0.0f, 0.5f), Vec3f(-0.3f, 0.0f, -0.5f), options, counts);
+  const double expected = 0.5 * (radius / distance) * (radius / distance);
+  CHECK(c.r == Approx(expected * 3.0).epsilon(0.006));
+  CHECK(c.g == Approx(expected * 2.0).epsilon(0.006));
+  CHECK(counts.area_light + counts.skipped[int(rt::SkipRule::sample_zero)] == 4096);  // N samples, not per triangle
+
+  // Its emitter list is sized before it is allocated.
+  const rt::FlatScene flat = rt::flatten_scene(scene);
+  rt::set_memory_limit(64 * 1024);
+  CHECK_THROWS_WITH(rt::collect_area_lights(scene, flat), Catch::Contains("emissive triangles' area lights"));
+  rt::set_memory_limit(0);
 }
