@@ -77,6 +77,10 @@ std::string scene_fingerprint(const Scene& scene, const FlatScene& flat) {
       digest.color(c);
     digest.value(m.shininess);
     add_texture(digest, m.diffuse_texture);
+    if (m.emits_light) {  // only then, so that the fingerprints of scenes without emitters stay as they were
+      digest.text("emits light");
+      add_texture(digest, m.emission_texture);
+    }
   }
   digest.value(scene.lights.size());
   for (const Light& l : scene.lights) {

@@ -33,10 +33,14 @@ std::string glfw_error() {
   return description ? description : "unknown GLFW error";
 }
 
-// "shadows, reflections to depth 2, 4 spp": what the renders compute, for the title bar.
+// "shadows, 1 area light x 16 samples, reflections to depth 2, 4 spp": what the renders compute,
+// for the title bar.
 std::string effects_summary(const EffectsPlan& plan, int spp) {
   std::vector<std::string> parts;
   parts.push_back(plan.shadows ? "shadows" : "no shadows");
+  if (!plan.emitters.empty())
+    parts.push_back(fmt::format("{} area light{} x {} samples", plan.emitters.size(), plan.emitters.size() == 1 ? "" : "s",
+                                plan.options.light_samples));
   parts.push_back(plan.reflections ? fmt::format("reflections to depth {}", plan.useful_depth) : "no reflections");
   parts.push_back(spp > 1 ? fmt::format("{} spp", spp) : "1 spp");
   return fmt::format("{}", fmt::join(parts, ", "));
