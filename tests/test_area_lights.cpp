@@ -345,6 +345,16 @@ TEST_CASE("OBJ: Ke makes an area light and replaces the headlight, negative Ke i
   REQUIRE(lights.emitters.size() == 1);
   CHECK(lights.emitters[0].plane_normal.y == Approx(-1.0));  // 5 6 7 8 winds clockwise seen from above
 
+  // An emission texture that cannot be read: a warning, and Ke alone.
+  rt_test::write_file(dir.path() / "box.mtl", "newmtl white\nKd 0.8 0.8 0.8\nnewmtl lamp\nKe 5 4 3\nmap_Ke glow.png\n");
+  rt::LoadReport glow_report;
+  const rt::Scene glow = rt::load_scene((dir.path() / "box.obj").string(), {}, &glow_report);
+  CHECK(glow.materials[1].emits_light);
+  CHECK(glow.materials[1].emission_texture.empty());
+  REQUIRE(glow_report.warnings.size() == 1);
+  CHECK_THAT(glow_report.warnings[0], Catch::Contains("map_Ke 'glow.png'") || Catch::Contains("glow.png"));
+  CHECK_THAT(glow_report.warnings[0], Catch::Contains("using Ke alone"));
+
   rt_test::write_file(dir.path() / "box.mtl", "newmtl white\nKd 0.8 0.8 0.8\nnewmtl lamp\nKe 5 -4 3\n");
   CHECK_THROWS_WITH(rt::load_scene((dir.path() / "box.obj").string(), {}, &report),
                     Catch::Contains("box.mtl:4:") && Catch::Contains("'Ke': '-4' is negative"));

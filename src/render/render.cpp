@@ -128,6 +128,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   // Light slots: the scene's lights, then the emitters (RayCounts::add_shadow_query).
   const std::size_t light_count = scene.lights.size();
   const std::size_t slot_count = light_count + (result.plan.area_lights ? result.plan.area_lights->emitters.size() : 0);
+  const bool sampled_lights = result.plan.area_lights != nullptr;  // the only reader of the path seed
   const auto render_block = [&](int bx0, int by0, int bx1, int by1, ThreadState& state) {
     RayCounts& counts = state.counts;
     PendingShading& pending = state.pending;
@@ -166,8 +167,8 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
       pending.clear();
       for (int k = 0; k < n; ++k) {
         if (timed[k]) start = __rdtsc();
-        shade_camera_hit(timed[k] ? timed_context : context, rays[k], hits[k], pixel_path_seed(xs[k], ys[k], s), counts,
-                         pending);
+        shade_camera_hit(timed[k] ? timed_context : context, rays[k], hits[k],
+                         sampled_lights ? pixel_path_seed(xs[k], ys[k], s) : 0, counts, pending);
         if (timed[k]) ticks[k] += __rdtsc() - start;
       }
 

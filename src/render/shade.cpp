@@ -73,16 +73,6 @@ RayCounts& RayCounts::operator+=(const RayCounts& other) {
   return *this;
 }
 
-void RayCounts::add_shadow_query(std::size_t light_count, std::size_t slot) {
-  if (slot < light_count) {
-    ++shadow;
-    add_at(shadow_per_light, slot);
-  } else {
-    ++area_light;
-    add_at(area_light_per_emitter, slot - light_count);
-  }
-}
-
 void RayCounts::add_shadow_ticks(std::size_t light_count, std::size_t slot, std::uint64_t ticks) {
   if (slot < light_count)
     add_at(shadow_ticks_per_light, slot, ticks);
@@ -128,7 +118,7 @@ struct ImmediateShadows {
     if (context.trace) note(context, depth, "  {}: visible, term {}", light_label(context, slot, sample), format_vec(term));
     radiance += term;
   }
-  void query(std::size_t slot, const Vec3d& term, const Ray& shadow_ray, int sample = 0) {
+  [[gnu::always_inline]] void query(std::size_t slot, const Vec3d& term, const Ray& shadow_ray, int sample = 0) {
     const std::size_t light_count = context.scene.lights.size();
     counts.add_shadow_query(light_count, slot);
     const std::uint64_t start = context.time_queries ? __rdtsc() : 0;
@@ -155,7 +145,7 @@ struct DeferredShadows {
     pixel.first_term = static_cast<std::uint32_t>(pending.terms.size());
   }
   void lit(std::size_t, const Vec3d& term, int = 0) { pending.terms.push_back({term, PendingShading::kNoQuery}); }
-  void query(std::size_t slot, const Vec3d& term, const Ray& shadow_ray, int = 0) {
+  [[gnu::always_inline]] void query(std::size_t slot, const Vec3d& term, const Ray& shadow_ray, int = 0) {
     counts.add_shadow_query(light_count, slot);
     pending.terms.push_back({term, static_cast<std::uint32_t>(pending.shadow_rays.size())});
     pending.shadow_rays.push_back(shadow_ray);
@@ -182,9 +172,10 @@ struct LitSurface {
 // pattern order: term_k = L_e,k / pdf_k (C_d n.l_k + C_s max(n.h_k, 0)^sigma) / (pi N) where
 // n.l_k > 0, shadowed by its own ray. The emitter-level rules (unlit material, behind a planar
 // emitter, below the horizon) make every term of the emitter zero in both modes: pruned, no
-// sample is drawn; unpruned, the samples are drawn and traced and add zero.
+// sample is drawn; unpruned, the samples are drawn and traced and add zero. Kept out of line, so
+// that scenes without emitters run shade_surface as it was compiled before area lights.
 template <class Shadows>
-void add_area_light_terms(const ShadingContext& context, const LitSurface& lit, int depth, std::uint64_t path_seed,
+[[gnu::noinline]] void add_area_light_terms(const ShadingContext& context, const LitSurface& lit, int depth, std::uint64_t path_seed,
                           RayCounts& counts, Shadows& shadows) {
   const EffectsPlan& plan = context.plan;
   const AreaLights& area_lights = *plan.area_lights;
@@ -250,11 +241,10 @@ void add_area_light_terms(const ShadingContext& context, const LitSurface& lit, 
   }
 }
 
-// The radiance a ray sees leaving the hit surface itself: an emitter's emission (times its
-// texture) from its front side only, else the material's self-emission from either side.
+// The radiance a ray sees leaving an emitter's surface (Material::emits_light): its emission (times
+// its texture) from its front side only.
 Vec3d emitted_radiance(const ShadingContext& context, const Material& material, std::uint32_t material_id,
                        const SurfacePoint& surface, const Vec3d& to_eye, const std::optional<Vec2f>& texcoord) {
-  if (!material.emits_light) return Vec3d(material.emission);
   if (!(glm::dot(surface.geometric_normal, to_eye) > 0.0)) return Vec3d(0.0);
   if (texcoord && context.textures && context.textures->has_emission(material_id))
     return Vec3d(material.emission) * Vec3d(context.textures->emission(material_id, *texcoord));
@@ -317,7 +307,9 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
       note(context, depth, "  {}: not traced ({})", light < 0 ? "reflection" : fmt::format("light {}", light),
            to_string(rule));
   };
-  shadows.begin(emitted_radiance(context, material, material_id, surface, to_eye, texcoord));
+  // An emitter's radiance, else the seed's self-emission (seen from either side).
+  shadows.begin(material.emits_light ? emitted_radiance(context, material, material_id, surface, to_eye, texcoord)
+                                     : Vec3d(material.emission));
   for (std::size_t j = 0; j < context.scene.lights.size(); ++j) {
     const Light& light = context.scene.lights[j];
     const LightPlan& light_plan = plan.lights[j];
