@@ -43,14 +43,6 @@ double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-Scene load_scene_or_default(const std::string& path, const GltfOptions& gltf, LoadReport* report) {
-  // --gltf-scene and --camera choose among what a glTF file holds; other formats have one of each.
-  if ((gltf.scene || !gltf.camera.empty()) && !is_gltf_path(path))
-    throw UsageError(fmt::format("--gltf-scene and --camera apply to .gltf/.glb scenes only, not '{}'",
-                                 path.empty() ? "<built-in default>" : path));
-  return path.empty() ? make_default_scene() : load_scene(path, gltf, report);
-}
-
 // What the loaders noted (glTF: Scene::notices) and what was made up for the file (LoadReport).
 void print_notices(const SceneOptions& options, const LoadReport& report, const Scene& scene) {
   for (const std::string& notice : scene.notices) fmt::print(stderr, "rt: notice: {}\n", notice);
@@ -185,13 +177,7 @@ RenderOptions render_options(const RenderArgs& args, const BatchContext& batch) 
 // The scene at `scene_path` (empty: the default scene) with the command line's image settings and
 // scene options applied, validated.
 Scene load_for_render(const RenderArgs& args, const std::string& scene_path, LoadReport& report) {
-  Scene scene = load_scene_or_default(scene_path, args.gltf, &report);
-  if (args.width) scene.settings.width = *args.width;
-  if (args.height) scene.settings.height = *args.height;
-  if (args.max_depth) scene.settings.max_depth = *args.max_depth;
-  apply_scene_options(args.scene, report, scene);
-  validate_scene(scene);
-  return scene;
+  return load_scene_for_command(scene_path, args.gltf, {args.width, args.height, args.max_depth}, args.scene, report);
 }
 
 enum class Outcome { rendered, skipped, cancelled };
@@ -450,9 +436,7 @@ int run_merge(const std::vector<std::string>& paths, const std::string& output, 
 int run_info(const std::string& scene_path, const GltfOptions& gltf, const SceneOptions& scene_options,
              const EffectsOptions& effects) {
   LoadReport report;
-  Scene scene = load_scene_or_default(scene_path, gltf, &report);
-  apply_scene_options(scene_options, report, scene);
-  validate_scene(scene);
+  const Scene scene = load_scene_for_command(scene_path, gltf, {}, scene_options, report);
   const FlatScene flat = flatten_scene(scene);
   print_notices(scene_options, report, scene);
   std::size_t models = 0;

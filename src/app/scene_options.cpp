@@ -140,4 +140,19 @@ std::vector<std::string> scene_notices(const SceneOptions& options, const LoadRe
   return notices;
 }
 
+Scene load_scene_for_command(const std::string& path, const GltfOptions& gltf, const ImageOverrides& image,
+                             const SceneOptions& options, LoadReport& report) {
+  // --gltf-scene and --camera choose among what a glTF file holds; other formats have one of each.
+  if ((gltf.scene || !gltf.camera.empty()) && !is_gltf_path(path))
+    throw UsageError(fmt::format("--gltf-scene and --camera apply to .gltf/.glb scenes only, not '{}'",
+                                 path.empty() ? "<built-in default>" : path));
+  Scene scene = path.empty() ? make_default_scene() : load_scene(path, gltf, &report);
+  if (image.width) scene.settings.width = *image.width;
+  if (image.height) scene.settings.height = *image.height;
+  if (image.max_depth) scene.settings.max_depth = *image.max_depth;
+  apply_scene_options(options, report, scene);
+  validate_scene(scene);
+  return scene;
+}
+
 }  // namespace rt

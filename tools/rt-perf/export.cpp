@@ -61,19 +61,11 @@ Json light_json(const Light& light) {
 
 Json texture_json(const Texture& texture) { return texture.empty() ? Json(nullptr) : Json(texture.path); }
 
-// The scene as `rt render` loads it (load_for_render in src/app/commands.cpp): file or built-in
-// default, command-line image size and depth, then the scene flags, validated.
+// The scene as `rt render` loads it: file or built-in default, command-line image size and depth,
+// then the scene flags, validated.
 Scene load_as_rt_render(const ExportArgs& args, LoadReport& report) {
-  if ((args.gltf.scene || !args.gltf.camera.empty()) && !is_gltf_path(args.scene))
-    throw UsageError(fmt::format("--gltf-scene and --camera apply to .gltf/.glb scenes only, not '{}'",
-                                 args.scene.empty() ? "<built-in default>" : args.scene));
-  Scene scene = args.scene.empty() ? make_default_scene() : load_scene(args.scene, args.gltf, &report);
-  if (args.width) scene.settings.width = *args.width;
-  if (args.height) scene.settings.height = *args.height;
-  if (args.max_depth) scene.settings.max_depth = *args.max_depth;
-  apply_scene_options(args.scene_options, report, scene);
-  validate_scene(scene);
-  return scene;
+  return load_scene_for_command(args.scene, args.gltf, {args.width, args.height, args.max_depth}, args.scene_options,
+                                report);
 }
 
 // Camera rays through pixel centres (rt's --spp 1) that hit a triangle from behind, i.e. where

@@ -47,6 +47,17 @@ void add_scene_options(CLI::App& app, SceneOptions& options);
 // the flag when a colour is negative, a direction zero or the resulting camera unusable.
 void apply_scene_options(const SceneOptions& options, const LoadReport& report, Scene& scene);
 
+// Image settings the command line overrides (--width, --height, --max-depth); nullopt: the scene's.
+struct ImageOverrides {
+  std::optional<int> width, height, max_depth;
+};
+
+// A scene as the commands load it: the file at `path` (empty: the built-in default scene), the
+// image overrides, then the scene flags (apply_scene_options), validated. Throws UsageError when
+// --gltf-scene or --camera is given for a format other than glTF, InputError on bad input.
+Scene load_scene_for_command(const std::string& path, const GltfOptions& gltf, const ImageOverrides& image,
+                             const SceneOptions& options, LoadReport& report);
+
 // Lines for stderr (without the "rt: " prefix) telling what the loader warned about and what was
 // made up for the file after the flags were applied: "warning: ..." and "note: ...".
 std::vector<std::string> scene_notices(const SceneOptions& options, const LoadReport& report, const Scene& scene);
