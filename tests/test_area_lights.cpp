@@ -16,6 +16,7 @@
 #include "rt/core/error.h"
 #include "rt/core/memory.h"
 #include "rt/flatten/flatten.h"
+#include "rt/io/image_io.h"
 #include "rt/io/load_scene.h"
 #include "rt/render/area_lights.h"
 #include "rt/render/render.h"
@@ -86,6 +87,7 @@ struct Shader {
   rt::Scene scene;
   rt::FlatScene flat;
   std::unique_ptr<rt::Accel> accel;
+  const rt::TextureSampler* textures = nullptr;  // emission textures, when the test has any
 
   explicit Shader(rt::Scene s) : scene(std::move(s)), flat(rt::flatten_scene(scene)) {
     accel = rt::build_accel(rt::AccelKind::embree, flat);
@@ -95,8 +97,9 @@ struct Shader {
     rt::Ray ray;
     ray.origin = origin;
     ray.direction = glm::normalize(direction);
-    const rt::EffectsPlan plan = rt::plan_effects(scene, flat, rt::RayOffset{}, options);
-    return rt::find_color(rt::ShadingContext{scene, flat, *accel, plan}, ray, 0, counts, Vec3d(1.0), seed);
+    const rt::EffectsPlan plan = rt::plan_effects(scene, flat, rt::RayOffset{}, options, textures);
+    return rt::find_color(rt::ShadingContext{scene, flat, *accel, plan, {}, textures}, ray, 0, counts, Vec3d(1.0),
+                          seed);
   }
 };
 
@@ -413,4 +416,43 @@ TEST_CASE("a lamp of thousands of triangles is sampled by power: a tessellated s
   rt::set_memory_limit(64 * 1024);
   CHECK_THROWS_WITH(rt::collect_area_lights(scene, flat), Catch::Contains("emissive triangles' area lights"));
   rt::set_memory_limit(0);
+}
+
+TEST_CASE("a textured emitter's samples go where its texture is bright, and its light stays the texture's") {
+  // A quad of two triangles whose texture coordinates fall on a white texel (first) and a black one
+  // (second): the second emits nothing, so the floor sees the first triangle's light alone.
+  rt_test::TempDir dir;
+  rt::Image texture(2, 1);
+  texture.at(0, 0) = Color(1.0f);
+  texture.at(1, 0) = Color(0.0f);
+  const std::string path = (dir.path() / "glow.png").string();
+  rt::write_image(texture, path);
+  const std::vector<Vec3f> quad{Vec3f(-0.3f, -0.2f, 0.5f), Vec3f(-0.3f, 0.2f, 0.5f), Vec3f(0.3f, 0.2f, 0.5f),
+                                Vec3f(0.3f, -0.2f, 0.5f)};
+  rt::Scene scene = floor_and_emitter(quad, Vec3d(2.0), diffuse_material(Vec3d(0.5)));
+  rt::TriangleMesh lamp = *scene.nodes[0].models[1].mesh;
+  lamp.texcoords.assign(lamp.positions.size(), rt::Vec2f(0.1f, 0.5f));
+  for (std::size_t v = 3; v < 6; ++v) lamp.texcoords[v] = rt::Vec2f(0.9f, 0.5f);  // the second triangle
+  scene.nodes[0].models[1].mesh = std::make_shared<const rt::TriangleMesh>(lamp);
+  scene.materials[1].emission_texture.path = path;
+  scene.materials[1].emission_texture.wrap_s = rt::TextureWrap::clamp_to_edge;
+  const rt::TextureSampler sampler(scene);
+  Shader shader(scene);
+  shader.textures = &sampler;
+
+  const rt::AreaLights lights = rt::collect_area_lights(scene, shader.flat, &sampler);
+  REQUIRE(lights.emitters.size() == 1);
+  CHECK(lights.emitters[0].texture_weighted);
+  CHECK(lights.emitters[0].cdf[0] == Approx(1.01 / 1.02));  // equal areas; white 1 + 1% floor against 0 + 1%
+  CHECK_FALSE(rt::collect_area_lights(scene, shader.flat).emitters[0].texture_weighted);
+
+  const Vec3d point(0.4, 0.1, 0.0);
+  const std::vector<Vec3d> white{Vec3d(quad[0]), Vec3d(quad[1]), Vec3d(quad[2])};
+  const double expected = 0.5 / kPi * 2.0 * lambert_cosine_solid_angle(point, Vec3d(0, 0, 1), white);
+  rt::EffectsOptions options;
+  options.light_samples = 4096;
+  rt::RayCounts counts;
+  const Color c = shader.shade(Vec3f(0.4f, 0.1f, 2.0f), Vec3f(0, 0, -1), options, counts);
+  CHECK(c.r == Approx(expected).epsilon(3e-3));
+  CHECK(counts.skipped[int(rt::SkipRule::sample_zero)] < 4096 / 50);  // few samples wasted on black
 }

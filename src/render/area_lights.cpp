@@ -5,6 +5,8 @@
 #include <numbers>
 
 #include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include "rt/core/error.h"
 #include "rt/core/memory.h"
@@ -38,6 +40,34 @@ void find_plane(Emitter& emitter) {
   emitter.plane_offset = offset;
 }
 
+// Share of the largest triangle's texture estimate added to every triangle's (see collect_area_lights).
+constexpr double kTextureWeightFloor = 0.01;
+
+// Per triangle of a textured emitter: the mean luminance of its emission texture (linear) at the
+// centroid and at the three points halfway between it and the vertices. Empty when the emitter has
+// no texture the sampler can read, or the scene no texture coordinates. Lookups in parallel, each
+// triangle's its own, so the result does not depend on the thread count.
+std::vector<double> estimate_texture_means(const Emitter& emitter, const FlatScene& flat, const TextureSampler* textures) {
+  if (!textures || !textures->has_emission(emitter.material) || flat.texcoords.empty()) return {};
+  constexpr float kCorner = 2.0f / 3.0f, kOther = 1.0f / 6.0f, kThird = 1.0f / 3.0f;
+  const Vec3f points[4] = {Vec3f(kThird), Vec3f(kCorner, kOther, kOther), Vec3f(kOther, kCorner, kOther),
+                           Vec3f(kOther, kOther, kCorner)};
+  std::vector<double> means(emitter.triangles.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, means.size(), 256), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t i = r.begin(); i != r.end(); ++i) {
+      const Vec3u tri = flat.triangles[emitter.triangles[i].primitive];
+      double sum = 0.0;
+      for (const Vec3f& b : points) {
+        const Vec2f uv = b.x * flat.texcoords[tri.x] + b.y * flat.texcoords[tri.y] + b.z * flat.texcoords[tri.z];
+        const Vec3d texel(textures->emission(emitter.material, uv));
+        sum += 0.2126 * texel.r + 0.7152 * texel.g + 0.0722 * texel.b;  // Rec. 709 luminance
+      }
+      means[i] = sum / 4.0;
+    }
+  });
+  return means;
+}
+
 }  // namespace
 
 std::string_view to_string(LightSampling sampling) {
@@ -55,7 +85,7 @@ LightSampling parse_light_sampling(std::string_view text) {
   throw InputError("", "", fmt::format("unknown light sampling '{}' (expected auto, area or solid-angle)", text));
 }
 
-AreaLights collect_area_lights(const Scene& scene, const FlatScene& flat) {
+AreaLights collect_area_lights(const Scene& scene, const FlatScene& flat, const TextureSampler* textures) {
   AreaLights lights;
   std::vector<int> emitter_of(scene.materials.size(), -1);  // per material: its emitter, -1 if it emits nothing
   bool any = false;
@@ -114,10 +144,20 @@ AreaLights collect_area_lights(const Scene& scene, const FlatScene& flat) {
   for (Emitter& emitter : lights.emitters) {
     const Vec3d emission(scene.materials[emitter.material].emission);
     emitter.power = std::numbers::pi * emitter.area * emission;
-    // One emission per emitter, so power is proportional to area: the cdf is the running area.
+    // One emission per emitter, so power is proportional to area, times the texture's estimate.
+    const std::vector<double> texture_means = estimate_texture_means(emitter, flat, textures);
+    emitter.texture_weighted = !texture_means.empty();
+    const double floor =
+        emitter.texture_weighted ? kTextureWeightFloor * *std::max_element(texture_means.begin(), texture_means.end()) : 0.0;
     double running = 0.0;
     emitter.cdf.reserve(emitter.triangles.size());
-    for (const EmitterTriangle& t : emitter.triangles) emitter.cdf.push_back(running += t.area);
+    for (std::size_t i = 0; i < emitter.triangles.size(); ++i)
+      emitter.cdf.push_back(running += emitter.triangles[i].area *
+                                       (emitter.texture_weighted ? texture_means[i] + floor : 1.0));
+    if (!(running > 0.0)) {  // an all-black texture: by area
+      running = 0.0;
+      for (std::size_t i = 0; i < emitter.triangles.size(); ++i) emitter.cdf[i] = running += emitter.triangles[i].area;
+    }
     for (double& c : emitter.cdf) c /= running;
     emitter.cdf.back() = 1.0;
     find_plane(emitter);
@@ -195,13 +235,11 @@ LightSample EmitterSampler::sample(Vec2d u) {
   const double cos_emitter = -glm::dot(t.normal, sample.direction);
   if (!(cos_emitter > 0.0)) return sample;  // the triangle's back faces the point: no radiance
 
-  const Material& material = scene_.materials[emitter_.material];
-  Vec3d radiance(material.emission);
+  const Vec3d radiance(scene_.materials[emitter_.material].emission);
   if (textures_ && textures_->has_emission(emitter_.material) && !flat_.texcoords.empty()) {
     const Vec3u tri = flat_.triangles[t.primitive];
-    const Vec2f uv = float(b.x) * flat_.texcoords[tri.x] + float(b.y) * flat_.texcoords[tri.y] +
-                     float(b.z) * flat_.texcoords[tri.z];
-    radiance *= Vec3d(textures_->emission(emitter_.material, uv));
+    sample.texcoord = float(b.x) * flat_.texcoords[tri.x] + float(b.y) * flat_.texcoords[tri.y] +
+                      float(b.z) * flat_.texcoords[tri.z];
   }
   // Solid-angle density of the direction: probability / solid angle, or by area
   // probability / area * r^2 / cos(theta') (the change of measure dA = r^2 / cos(theta') d omega).

@@ -85,10 +85,11 @@ namespace {
 
 // The area-light part of plan_effects: the emitters and what is done with each. Area lights carry
 // no ambient term (docs/area-lights.md), so an emitter lights only diffuse and specular colours.
-void plan_area_lights(const Scene& scene, const FlatScene& flat, bool any_diffuse_or_specular, EffectsPlan& plan) {
+void plan_area_lights(const Scene& scene, const FlatScene& flat, const TextureSampler* textures,
+                      bool any_diffuse_or_specular, EffectsPlan& plan) {
   if (std::none_of(scene.materials.begin(), scene.materials.end(), [](const Material& m) { return m.emits_light; }))
     return;
-  auto lights = std::make_shared<const AreaLights>(collect_area_lights(scene, flat));
+  auto lights = std::make_shared<const AreaLights>(collect_area_lights(scene, flat, textures));
   if (lights->empty()) return;
   const EffectsOptions& options = plan.options;
   for (const Emitter& emitter : lights->emitters) {
@@ -97,7 +98,10 @@ void plan_area_lights(const Scene& scene, const FlatScene& flat, bool any_diffus
         fmt::format("'{}': {} triangle{}, area {:.4g}, power ({:.4g}, {:.4g}, {:.4g}){}",
                     scene.materials[emitter.material].name, emitter.triangles.size(),
                     emitter.triangles.size() == 1 ? "" : "s", emitter.area, emitter.power.r, emitter.power.g,
-                    emitter.power.b, scene.materials[emitter.material].emission_texture.empty() ? "" : " times its texture");
+                    emitter.power.b,
+                    scene.materials[emitter.material].emission_texture.empty() ? ""
+                    : emitter.texture_weighted ? " times its texture, which steers the samples"
+                                               : " times its texture");
     if (!any_diffuse_or_specular && options.prune) {
       ep.contributes = false;
       ep.why = size + "; off: no material has a diffuse or specular colour";
@@ -131,7 +135,7 @@ double EffectsPlan::approximation_error_bound() const {
 }
 
 EffectsPlan plan_effects(const Scene& scene, const FlatScene& flat, const RayOffset& ray_offset,
-                         const EffectsOptions& options) {
+                         const EffectsOptions& options, const TextureSampler* textures) {
   EffectsPlan plan;
   plan.options = options;
   const bool geometry = !flat.triangles.empty() || !flat.spheres.empty();
@@ -206,7 +210,7 @@ EffectsPlan plan_effects(const Scene& scene, const FlatScene& flat, const RayOff
   // Geometry facing no light at all and no reflections would still need shadow rays for lights at
   // reflected hits, so `shadows` stays per light; it is false when no light contributes.
 
-  plan_area_lights(scene, flat, any_diffuse_or_specular, plan);
+  plan_area_lights(scene, flat, textures, any_diffuse_or_specular, plan);
 
   // Error bounds of the approximations. Radiance of a hit at depth d <= D: emission + lights *
   // (ambient + diffuse + specular) + r * radiance at depth d + 1, or the background on a miss.

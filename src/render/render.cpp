@@ -82,7 +82,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   const CameraFrame frame = make_camera_frame(scene.camera, width, scene.settings.height, scene.source);
   const TextureSampler textures(scene);
   RenderResult result;
-  result.plan = plan_effects(scene, flat, options.ray_offset, options.effects);
+  result.plan = plan_effects(scene, flat, options.ray_offset, options.effects, &textures);
   const ShadingContext context{scene, flat, accel, result.plan, options.ray_offset, &textures, false};
   const ShadingContext timed_context{scene, flat, accel, result.plan, options.ray_offset, &textures, true};
   const int tile = std::max(1, options.tile_size);
@@ -284,7 +284,7 @@ std::vector<std::string> trace_pixel(const Scene& scene, const FlatScene& flat, 
     throw InputError(scene.source, "", fmt::format("pixel ({}, {}) is outside the {}x{} image", x, y, width, height));
   const CameraFrame frame = make_camera_frame(scene.camera, width, height, scene.source);
   const TextureSampler textures(scene);
-  const EffectsPlan plan = plan_effects(scene, flat, options.ray_offset, options.effects);
+  const EffectsPlan plan = plan_effects(scene, flat, options.ray_offset, options.effects, &textures);
   std::vector<std::string> lines;
   ShadingContext context{scene, flat, accel, plan, options.ray_offset, &textures, false};
   context.trace = &lines;

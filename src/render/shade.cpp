@@ -223,7 +223,10 @@ template <class Shadows>
         const double half_length = glm::length(half_sum);
         const double n_dot_h = half_length > 0.0 ? std::max(glm::dot(lit.normal, half_sum) / half_length, 0.0) : 0.0;
         const Vec3d highlight = lit.terms.specular || !prune ? lit.specular * std::pow(n_dot_h, lit.shininess) : Vec3d(0.0);
-        term = sample.radiance_over_pdf * (lit.diffuse * n_dot_l + highlight) * scale;
+        const Vec3d radiance = sample.texcoord ? sample.radiance_over_pdf *
+                                                     Vec3d(context.textures->emission(emitter.material, *sample.texcoord))
+                                               : sample.radiance_over_pdf;
+        term = radiance * (lit.diffuse * n_dot_l + highlight) * scale;
       }
       if (prune && term == Vec3d(0.0)) {
         skip(SkipRule::sample_zero, e, 1);

@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -42,8 +43,9 @@ struct EmitterTriangle {
 };
 
 // The triangles of one emissive material, chosen among by power: triangle i with probability
-// cdf[i] - cdf[i - 1], proportional to its area times the luminance of the material's emission
-// (the emission texture is not in the weights; it modulates each sample).
+// cdf[i] - cdf[i - 1], proportional to its area, times (texture_weighted) an estimate of its
+// emission texture's mean luminance. The texture itself modulates each sample, so the estimate only
+// steers samples and the estimator stays unbiased.
 struct Emitter {
   std::uint32_t material = 0;  // index into Scene::materials
   std::vector<EmitterTriangle> triangles;
@@ -53,6 +55,7 @@ struct Emitter {
   // times scene units^2), before any texture.
   Vec3d power{0.0};
   Bounds3d bounds;             // of the vertices
+  bool texture_weighted = false;  // the cdf includes the emission texture (collect_area_lights)
   // All triangles lie in one plane and face the same way: a point on or behind it receives nothing.
   bool planar = false;
   Vec3d plane_normal{0.0};     // unit, the front side's
@@ -67,10 +70,13 @@ struct AreaLights {
 };
 
 // The scene's emitters: every flattened triangle whose material emits light with a non-black
-// emission. Throws InputError naming scene.source when a sphere has an emitting material (area
-// lights are triangles) or when the emitter list would not fit in memory (checked before
-// allocating).
-AreaLights collect_area_lights(const Scene& scene, const FlatScene& flat);
+// emission. With `textures`, a textured emitter's triangles are weighted by their area times the
+// mean luminance of its emission texture at four points of the triangle, plus 1% of the largest
+// such mean (so that every triangle keeps a chance: a glow map is mostly black, and its bright
+// details get the samples). Throws InputError naming scene.source when a sphere has an emitting
+// material (area lights are triangles) or when the emitter list would not fit in memory (checked
+// before allocating).
+AreaLights collect_area_lights(const Scene& scene, const FlatScene& flat, const TextureSampler* textures = nullptr);
 
 // Whether point `point` (world space) is strictly in front of a planar emitter; true for
 // non-planar ones. The same test decides the "behind the emitter" rule and the estimator, so
@@ -87,8 +93,11 @@ struct LightSample {
   Vec3d direction{0.0};      // unit, world space, from the shading point towards the sample
   double distance = 0.0;     // world units, from the shading point to the sample
   // Emitted radiance at the sample divided by the solid-angle density of the sample direction
-  // (linear RGB, radiance x steradians): zero when the sample sees the triangle's back.
+  // (linear RGB, radiance x steradians): zero when the sample sees the triangle's back. Without the
+  // emission texture: when the emitter has one, `texcoord` says where to sample it, and the caller
+  // multiplies it in once the sample's term is known not to vanish (a lookup saved where n.l <= 0).
   Vec3d radiance_over_pdf{0.0};
+  std::optional<Vec2f> texcoord;
   SurfacePoint light_point;  // the sample on the emitter, for the shadow ray's far end
 };
 

@@ -112,8 +112,10 @@ struct EffectsPlan {
 // Decides the plan after loading and flattening. `ray_offset` matters because the convex rule
 // argues about the half-space a shadow ray stays in, which holds for the traced ray only when its
 // origin cannot fall behind the surface: it is used with robust offsets only.
+// `textures` (optional) steers the area lights' samples towards the bright parts of emission
+// textures (collect_area_lights); it changes the noise, not the expected image.
 EffectsPlan plan_effects(const Scene& scene, const FlatScene& flat, const RayOffset& ray_offset,
-                         const EffectsOptions& options);
+                         const EffectsOptions& options, const TextureSampler* textures = nullptr);
 
 // The plan as short human-readable lines (rt info, --explain).
 std::vector<std::string> describe_plan(const EffectsPlan& plan, const Scene& scene);
