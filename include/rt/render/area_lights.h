@@ -106,7 +106,8 @@ struct LightSample {
 // triangle's interval picks the point together with u.x, by area or by solid angle as `sampling`
 // says. What depends only on (point, triangle), the spherical triangle and the choice of strategy,
 // is set up once for each of the first kCachedTriangles triangles and reused by all the samples
-// of the hit. `textures` supplies the emission texture (nullptr: ignored). Deterministic.
+// of the hit. With `textures` and an emission texture, samples carry their texcoord (nullptr:
+// the texture is ignored). Deterministic.
 class EmitterSampler {
  public:
   EmitterSampler(const Emitter& emitter, const FlatScene& flat, const Scene& scene, const TextureSampler* textures,
