@@ -303,7 +303,7 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
     stats["degenerate_triangles_dropped"] = flat.degenerate_triangles_dropped;
     stats["non_finite_samples"] = result.non_finite_samples;
     stats["lights"] = scene.lights.size();
-    stats["emitters"] = result.plan.area_lights ? result.plan.area_lights->emitters.size() : 0;
+    stats["emitters"] = result.plan.emitters.size();
     stats["rays"] = {{"camera", result.rays.camera},
                      {"shadow", result.rays.shadow},
                      {"reflection", result.rays.reflection},
@@ -474,7 +474,7 @@ int run_info(const std::string& scene_path, const GltfOptions& gltf, const Scene
                              : "");
   }
   const EffectsPlan plan = plan_effects(scene, flat, RayOffset{}, effects);
-  const std::size_t emitters = plan.area_lights ? plan.area_lights->emitters.size() : 0;
+  const std::size_t emitters = plan.emitters.size();
   fmt::print("area lights {} emitter{}, {} emissive triangles\n", emitters, emitters == 1 ? "" : "s",
              plan.area_lights ? plan.area_lights->triangle_count : 0);
   for (std::size_t e = 0; e < emitters; ++e) {

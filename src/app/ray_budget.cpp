@@ -33,8 +33,7 @@ std::vector<BudgetRow> budget_rows(const RenderResult& result, const Scene& scen
   for (std::size_t j = 0; j < scene.lights.size(); ++j)
     rows.push_back({Group::shadow, j, fmt::format("shadow light {}", j), at(rays.shadow_per_light, j), std::nullopt,
                     double(at(rays.shadow_ticks_per_light, j))});
-  const std::size_t emitters = result.plan.area_lights ? result.plan.area_lights->emitters.size() : 0;
-  for (std::size_t e = 0; e < emitters; ++e)
+  for (std::size_t e = 0; e < result.plan.emitters.size(); ++e)
     rows.push_back({Group::area_light, e, fmt::format("area light {}", e), at(rays.area_light_per_emitter, e),
                     std::nullopt, double(at(rays.area_light_ticks_per_emitter, e))});
   for (std::size_t d = 1; d < std::max(rays.reflection_per_depth.size(), std::size_t(1)); ++d)

@@ -16,8 +16,6 @@ namespace rt {
 
 namespace {
 
-bool is_black(const Color& c) { return c.r == 0.0f && c.g == 0.0f && c.b == 0.0f; }
-
 // Planarity tolerances (relative): normals within ~1e-6 rad of the first triangle's, vertices
 // within 1e-9 of the emitter's extent off its plane. A point the plane test puts behind a slightly
 // tilted triangle then receives at most ~1e-6 of a grazing contribution less; float32 vertices of a
@@ -87,16 +85,14 @@ LightSampling parse_light_sampling(std::string_view text) {
 
 AreaLights collect_area_lights(const Scene& scene, const FlatScene& flat, const TextureSampler* textures) {
   AreaLights lights;
-  std::vector<int> emitter_of(scene.materials.size(), -1);  // per material: its emitter, -1 if it emits nothing
-  bool any = false;
-  for (std::size_t m = 0; m < scene.materials.size(); ++m) {
-    const Material& material = scene.materials[m];
-    if (material.emits_light && !is_black(material.emission)) {
-      emitter_of[m] = 0;
-      any = true;
+  // Material index -> its emitter's index in lights.emitters (material order), -1 if it emits nothing.
+  std::vector<int> emitter_of(scene.materials.size(), -1);
+  for (std::size_t m = 0; m < scene.materials.size(); ++m)
+    if (scene.materials[m].is_emitter()) {
+      emitter_of[m] = int(lights.emitters.size());
+      lights.emitters.emplace_back().material = static_cast<std::uint32_t>(m);
     }
-  }
-  if (!any) return lights;
+  if (lights.empty()) return lights;
   for (const FlatSphere& sphere : flat.spheres)
     if (emitter_of[sphere.material] >= 0)
       throw InputError(scene.source, "",
@@ -108,16 +104,6 @@ AreaLights collect_area_lights(const Scene& scene, const FlatScene& flat, const 
   for (std::uint32_t material : flat.material_ids) count += emitter_of[material] >= 0;
   if (const auto shortfall = memory_shortfall(count * (sizeof(EmitterTriangle) + sizeof(double))))
     throw InputError(scene.source, "", fmt::format("the {} emissive triangles' area lights {}", count, *shortfall));
-
-  for (std::size_t m = 0; m < scene.materials.size(); ++m)
-    if (emitter_of[m] >= 0) {
-      emitter_of[m] = -1;
-      Emitter emitter;
-      emitter.material = static_cast<std::uint32_t>(m);
-      lights.emitters.push_back(std::move(emitter));
-    }
-  // Material index -> emitter index, in material order.
-  for (std::size_t e = 0; e < lights.emitters.size(); ++e) emitter_of[lights.emitters[e].material] = int(e);
 
   for (std::size_t i = 0; i < flat.triangles.size(); ++i) {
     const int e = emitter_of[flat.material_ids[i]];

@@ -87,8 +87,6 @@ namespace {
 // no ambient term (docs/area-lights.md), so an emitter lights only diffuse and specular colours.
 void plan_area_lights(const Scene& scene, const FlatScene& flat, const TextureSampler* textures,
                       bool any_diffuse_or_specular, EffectsPlan& plan) {
-  if (std::none_of(scene.materials.begin(), scene.materials.end(), [](const Material& m) { return m.emits_light; }))
-    return;
   auto lights = std::make_shared<const AreaLights>(collect_area_lights(scene, flat, textures));
   if (lights->empty()) return;
   const EffectsOptions& options = plan.options;

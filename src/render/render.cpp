@@ -127,7 +127,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   constexpr int kBlockPixels = kBlock * kBlock;
   // Light slots: the scene's lights, then the emitters (RayCounts::add_shadow_query).
   const std::size_t light_count = scene.lights.size();
-  const std::size_t slot_count = light_count + (result.plan.area_lights ? result.plan.area_lights->emitters.size() : 0);
+  const std::size_t slot_count = light_count + result.plan.emitters.size();
   const bool sampled_lights = result.plan.area_lights != nullptr;  // the only reader of the path seed
   const auto render_block = [&](int bx0, int by0, int bx1, int by1, ThreadState& state) {
     RayCounts& counts = state.counts;

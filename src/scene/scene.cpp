@@ -150,7 +150,7 @@ bool lit_by_own_emitters(const Scene& scene) {
     for (const Model& model : node.models) {
       if (!model.mesh || model.mesh->triangles.empty() || model.material >= scene.materials.size()) continue;
       const Material& material = scene.materials[model.material];
-      if (material.emits_light && material.emission != Color(0.0f) && material.emission_texture.empty()) return true;
+      if (material.is_emitter() && material.emission_texture.empty()) return true;
     }
   return false;
 }

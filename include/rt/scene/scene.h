@@ -52,6 +52,9 @@ struct Material {
   // at every hit from either side, lighting nothing (CSE167x .test, native scenes by default).
   bool emits_light = false;
   Texture emission_texture;  // multiplies `emission` of an emitter at each point it is evaluated
+
+  // An area light: emits_light with a non-black emission (a black one lights nothing).
+  bool is_emitter() const { return emits_light && emission != Color(0.0f); }
 };
 
 // A light in world space. position.w == 0: directional, (x, y, z) is the direction towards the
