@@ -156,8 +156,8 @@ TEST_CASE("rt render --crop writes the region, in place for .exr and alone for .
 
   // Mistakes: outside the image; a tile written as PNG; K outside 1..N; more tiles than rows.
   const rt_test::RtRun outside = rt_test::run_rt_in(dir, "render -q --width 50 --height 40 --crop 0 0 51 40");
-  CHECK(outside.status == 1);
-  CHECK_THAT(outside.err, Catch::Contains("the region 0 0 51 40 (x0 y0 x1 y1) is empty or outside the 50x40 image"));
+  CHECK(outside.status == 2);
+  CHECK_THAT(outside.err, Catch::Contains("--crop 0 0 51 40 reaches outside the 50x40 image (X1 51 > width 50)"));
   const rt_test::RtRun png_tile = rt_test::run_rt_in(dir, "render -q --tile 1/2 -o tile.png");
   CHECK(png_tile.status == 2);
   CHECK_THAT(png_tile.err, Catch::Contains("--tile writes an OpenEXR region file for rt merge; 'tile.png' is not .exr"));
@@ -168,7 +168,7 @@ TEST_CASE("rt render --crop writes the region, in place for .exr and alone for .
     CHECK_THAT(run.err, Catch::Contains("expected K/N with 1 <= K <= N"));
   }
   const rt_test::RtRun too_many = rt_test::run_rt_in(dir, "render -q --height 40 --tile 1/41");
-  CHECK(too_many.status == 1);
+  CHECK(too_many.status == 2);
   CHECK_THAT(too_many.err, Catch::Contains("--tile 1/41: the 40-row image cannot be cut into 41 tiles"));
   CHECK_FALSE(fs::exists(dir / "tile.png"));
 }

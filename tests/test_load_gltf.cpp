@@ -109,6 +109,16 @@ std::string load_error(const std::string& path, const rt::GltfOptions& options =
   return "";
 }
 
+// What loading throws when a --camera or --gltf-scene value does not fit the file: a usage error.
+std::string flag_error(const std::string& path, const rt::GltfOptions& options) {
+  try {
+    load(path, options);
+  } catch (const rt::UsageError& error) {
+    return error.what();
+  }
+  return "";
+}
+
 bool has_notice(const rt::Scene& scene, const std::string& text) {
   for (const std::string& notice : scene.notices)
     if (notice.find(text) != std::string::npos) return true;
@@ -279,9 +289,10 @@ TEST_CASE("gltf: cameras are chosen by name or index, orthographic ones are refu
   CHECK(load(path, {std::nullopt, "2"}).camera.eye == rt::Vec3d(1, 0, 7));
   CHECK(load(path, {std::nullopt, "wide node"}).camera.eye == rt::Vec3d(0, 0, 5));
   CHECK(load(path, {std::nullopt, "narrow"}).camera.target == rt::Vec3d(1, 0, 6));
-  CHECK_THAT(load_error(path, {std::nullopt, "0"}), Contains("/cameras/0/type") && Contains("not supported"));
-  CHECK_THAT(load_error(path, {std::nullopt, "7"}), Contains("out of range"));
-  CHECK_THAT(load_error(path, {std::nullopt, "tele"}), Contains("no camera or camera node is named 'tele'"));
+  CHECK_THAT(flag_error(path, {std::nullopt, "0"}), Contains("--camera 0") && Contains("not supported"));
+  CHECK_THAT(flag_error(path, {std::nullopt, "7"}), Contains("--camera 7 is out of range"));
+  CHECK_THAT(flag_error(path, {std::nullopt, "tele"}),
+             Contains("--camera 'tele': no camera or camera node has this name") && Contains("1 'wide'"));
 }
 
 TEST_CASE("gltf: --gltf-scene picks a scene, the default is the file's 'scene'", "[gltf]") {
@@ -293,7 +304,7 @@ TEST_CASE("gltf: --gltf-scene picks a scene, the default is the file's 'scene'",
   const std::string path = builder.write(dir);
   CHECK(rt::flatten_scene(load(path)).triangle_count() == 0);
   CHECK(rt::flatten_scene(load(path, {0, ""})).triangle_count() == 1);
-  CHECK_THAT(load_error(path, {5, ""}), Contains("/scenes") && Contains("out of range"));
+  CHECK_THAT(flag_error(path, {5, ""}), Contains("--gltf-scene 5 is out of range"));
 }
 
 TEST_CASE("gltf: points and lines are skipped and counted, strips and fans are triangulated", "[gltf]") {

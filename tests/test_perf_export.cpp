@@ -81,7 +81,7 @@ TEST_CASE("rt-perf export-mitsuba writes scene.json and one PLY per material, as
   INFO("stderr: " << run.err);
   REQUIRE(run.status == 0);
   const nlohmann::json scene = read_json(dir / "out/scene.json");
-  CHECK(scene.at("image") == nlohmann::json({{"width", 20}, {"height", 30}}));
+  CHECK(scene.at("image") == nlohmann::json({{"width", 20}, {"height", 15}}));  // 40x30's aspect ratio kept
   CHECK(scene.at("camera").at("fovy") == 40.0);
   CHECK(scene.at("camera").at("eye") == nlohmann::json({0.0, 0.0, 6.0}));
   CHECK(scene.at("headlight") == false);
@@ -102,7 +102,7 @@ TEST_CASE("rt-perf export-mitsuba writes scene.json and one PLY per material, as
   CHECK(red.at("mesh").is_null());
   CHECK(scene.at("spheres") == nlohmann::json::parse(R"([{"material": 1, "to_world":
       [[2.0, 0.0, 0.0, 3.0], [0.0, 2.0, 0.0, 0.0], [0.0, 0.0, 2.0, 0.0], [0.0, 0.0, 0.0, 1.0]]}])"));
-  CHECK(scene.at("camera_rays") == 600);
+  CHECK(scene.at("camera_rays") == 300);
   CHECK(scene.at("camera_back_face_hits") == 0);
   CHECK(fs::exists(dir / "out/mesh-0.ply"));
   CHECK_FALSE(fs::exists(dir / "out/mesh-1.ply"));

@@ -209,8 +209,8 @@ TEST_CASE("rt render --debug-pixel prints the pixel's ray tree and writes nothin
   CHECK_THAT(run.out, Catch::Contains("pixel (320, 240) = ("));
   CHECK(dir.entries().empty());
   const rt_test::RtRun outside = rt_test::run_rt_in(dir, "render --debug-pixel 640 0");
-  CHECK(outside.status == 1);
-  CHECK_THAT(outside.err, Catch::Contains("pixel (640, 0) is outside the 640x480 image"));
+  CHECK(outside.status == 2);
+  CHECK_THAT(outside.err, Catch::Contains("--debug-pixel 640 0 is outside the 640x480 image"));
 }
 
 TEST_CASE("rt render --memory-limit refuses an image that does not fit, before rendering", "[reliability][cli]") {
@@ -238,7 +238,7 @@ TEST_CASE("faults while writing leave no partial file and an existing file untou
   }
   SECTION("an unknown extension") {
     const rt_test::RtRun run = rt_test::run_rt_in(dir, "render -o out.xyz");
-    CHECK(run.status == 1);
+    CHECK(run.status == 2);
     CHECK_THAT(run.err, Catch::Contains("out.xyz: unknown image format '.xyz'"));
   }
   SECTION("a directory that does not exist, or is a file") {

@@ -150,12 +150,13 @@ TEST_CASE("rt view --screenshot shows exactly the pixels rt render writes, in a 
   }
   const std::string scenes = std::string(RT_SOURCE_DIR) + "/scenes/";
   struct Case {
-    std::string scene, options;
+    std::string scene, options, exit;
   };
   // The default scene (shadows, reflections to depth 5) at one sample per pixel, and the Cornell
-  // box anti-aliased, which rt view accumulates one sample per pass.
-  for (const Case& c : {Case{scenes + "default.json", "--width 320 --height 240"},
-                        Case{scenes + "cornell-box.json", "--width 200 --height 150 --spp 4"}}) {
+  // box anti-aliased, which rt view accumulates one sample per pass. --screenshot alone closes the
+  // window too: without it implying --exit-when-done, the second case would never end.
+  for (const Case& c : {Case{scenes + "default.json", "--width 320 --height 240", " --exit-when-done"},
+                        Case{scenes + "cornell-box.json", "--width 200 --height 150 --spp 4", ""}}) {
     INFO(c.scene << " " << c.options);
     rt_test::TempDir cwd;
     const rt_test::RtRun rendered = rt_test::run_rt_in(cwd, "render '" + c.scene + "' " + c.options + " -o render.png --quiet");
@@ -164,9 +165,9 @@ TEST_CASE("rt view --screenshot shows exactly the pixels rt render writes, in a 
     // three blocks and is unloaded before the leak check, so no suppression can name it. Every
     // other check of the sanitizers stays on, and every other test keeps the leak check.
     const rt_test::RtRun viewed = rt_test::run_in(
-        cwd, "/usr/bin/env",
-        "DISPLAY=" + server->display() + " LSAN_OPTIONS=detect_leaks=0 '" + std::string(RT_EXECUTABLE) + "' view '" +
-            c.scene + "' " + c.options + " --screenshot view.png --exit-when-done");
+        cwd, "/usr/bin/timeout",
+        "300 /usr/bin/env DISPLAY=" + server->display() + " LSAN_OPTIONS=detect_leaks=0 '" + std::string(RT_EXECUTABLE) + "' view '" +
+            c.scene + "' " + c.options + " --screenshot view.png" + c.exit);
     INFO(viewed.err);
     REQUIRE(viewed.status == 0);
     CHECK(viewed.err.find("screenshot view.png") != std::string::npos);

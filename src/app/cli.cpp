@@ -12,6 +12,7 @@
 #include "rt/core/error.h"
 #include "rt/core/memory.h"
 #include "commands.h"
+#include "usage.h"
 
 namespace rt {
 
@@ -42,15 +43,16 @@ int run_cli(int argc, char** argv) {
                      "another in one process (a failing scene is reported and the others go on)");
   const auto add_gltf_options = [](CLI::App* command, GltfOptions& gltf) {
     command->add_option("--gltf-scene", gltf.scene, "glTF only: index of the scene to show (default: the file's default)")
-        ->check(CLI::NonNegativeNumber);
+        ->check(whole_number_in(0, 1 << 30));
     command->add_option("--camera", gltf.camera,
                         "glTF only: camera name, camera node name or index into the file's cameras "
                         "(default: the first perspective camera in the scene)");
   };
   add_gltf_options(render, render_args.gltf);
   render->add_option("-o,--output", render_args.output,
-                     "Output image; format by extension (png, jpg, exr, hdr, tif, ...). "
-                     "Default: the scene's \"output\", else <scene name>.png");
+                     "Output image, format by extension (any case): png, ppm (written by rt), exr, hdr (linear "
+                     "float), tif, jpg, bmp, tga, webp, gif and the rest OpenImageIO writes. Default: the scene's "
+                     "\"output\", else <scene name>.png");
   render->add_option("--outdir", render_args.outdir,
                      "Write each image to DIR/<scene name>.png (created if missing), ignoring the scenes' own "
                      "output names; regions: DIR/<scene name>.tile-K-of-N.exr");
@@ -61,12 +63,14 @@ int run_cli(int argc, char** argv) {
             "--crop",
             [&render_args](const std::vector<int>& v) {
               render_args.region.crop = PixelRegion{v[0], v[1], v[2], v[3]};
-              if (render_args.region.crop->empty() || v[0] < 0 || v[1] < 0)
-                throw CLI::ValidationError("--crop", "expected X0 Y0 X1 Y1 with 0 <= X0 < X1 and 0 <= Y0 < Y1");
+              if (render_args.region.crop->empty())
+                throw CLI::ValidationError("--crop", fmt::format("{} {} {} {} is empty: expected X0 Y0 X1 Y1 with X0 < X1 "
+                                                                 "and Y0 < Y1", v[0], v[1], v[2], v[3]));
             },
             "Render only pixels [X0, X1) x [Y0, Y1) of the image, each exactly as in the whole image; an .exr "
             "output keeps their place (data window) for rt merge. Default output: <scene name>.crop-X0-Y0-X1-Y1.exr")
       ->expected(4)
+      ->check(whole_number_in(0, kMaxImageSide))
       ->type_name("X0 Y0 X1 Y1");
   render->add_option_function<std::string>(
             "--tile",
@@ -85,6 +89,7 @@ int run_cli(int argc, char** argv) {
   render->add_option("--debug-pixel", render_args.debug_pixel,
                      "Print the ray tree of pixel X Y (every ray, light and colour) instead of rendering")
       ->expected(2)
+      ->check(whole_number_in(0, kMaxImageSide - 1))
       ->type_name("X Y");
   render->add_flag("--explain", render_args.explain,
                    "Print the effects plan and the ray budget (rays, hits, time per effect, skipped rays) at the end");
@@ -95,66 +100,71 @@ int run_cli(int argc, char** argv) {
     command->add_option("--min-throughput", effects.min_throughput,
                         "Approximation, off by default: no reflection ray once the path's weight is below this "
                         "(e.g. 0.002 = half an 8-bit step); error <= value x the scene's radiance bound")
-        ->check(CLI::Range(0.0, 1.0));
+        ->check(number_in(0.0, 1.0));
     command->add_option("--min-light", effects.min_light_contribution,
                         "Approximation, off by default: drop a light at a hit when its term is below this "
                         "(linear RGB); error <= value x lights x path weight bound")
-        ->check(CLI::Range(0.0, 1.0));
+        ->check(number_in(0.0, 1.0));
     command->add_option("--light-samples", effects.light_samples,
                         "Area lights (emissive surfaces): shadow-ray samples per emitter per hit, stratified; more "
                         "gives smoother penumbrae at proportional cost")
-        ->check(CLI::Range(1, EffectsOptions::kMaxLightSamples))
+        ->check(whole_number_in(1, EffectsOptions::kMaxLightSamples))
         ->capture_default_str();
     command->add_option_function<std::string>(
               "--light-sampling",
               [&effects](const std::string& text) { effects.light_sampling = parse_light_sampling(text); },
               "How an area-light sample picks its point: auto (by solid angle where the triangle looks large, "
               "else by area), area or solid-angle")
-        ->check(CLI::IsMember({"auto", "area", "solid-angle"}))
+        ->check(one_of({"auto", "area", "solid-angle"}))
         ->default_str("auto");
   };
   // The settings of an image, shared by rt render and rt view.
   const auto add_image_options = [](CLI::App* command, RenderArgs& args) {
-    command->add_option("--width", args.width, "Image width in pixels")->check(CLI::Range(1, kMaxImageSide));
-    command->add_option("--height", args.height, "Image height in pixels")->check(CLI::Range(1, kMaxImageSide));
+    command->add_option("--width", args.width, "Image width in pixels (alone: the height follows the scene's aspect ratio)")
+        ->check(whole_number_in(1, kMaxImageSide));
+    command->add_option("--height", args.height, "Image height in pixels (alone: the width follows the scene's aspect ratio)")
+        ->check(whole_number_in(1, kMaxImageSide));
     command->add_option("--max-depth", args.max_depth, "Reflection depth (0 = no reflections)")
-        ->check(CLI::Range(0, kMaxReflectionDepth));
+        ->check(whole_number_in(0, kMaxReflectionDepth));
     command->add_option("--spp", args.spp,
                         "Samples per pixel: 1 = the pixel centre (the seed's camera); N > 1 = stratified jittered "
                         "samples averaged with a box filter (anti-aliasing), the same image for any thread count")
-        ->check(CLI::Range(1, 1 << 16))
+        ->check(whole_number_in(1, 1 << 16))
         ->capture_default_str();
     command->add_option("--accel", args.accel, "Intersector: embree (fast), reference (watertight, double, brute force) or "
                         "reference-barycentric (the seed's plain solve, double, brute force)")
-        ->check(CLI::IsMember({"embree", "reference", "reference-barycentric"}))
+        ->check(one_of({"embree", "reference", "reference-barycentric"}))
         ->capture_default_str();
     command->add_option("--embree-robust", args.embree_robust,
                         "Embree's robust mode: watertight triangle test, conservative boxes")
-        ->check(CLI::IsMember({"on", "off"}))
+        ->check(one_of({"on", "off"}))
         ->capture_default_str();
     command->add_option("--embree-quality", args.embree_quality, "Embree BVH build quality")
-        ->check(CLI::IsMember({"low", "medium", "high"}))
+        ->check(one_of({"low", "medium", "high"}))
         ->capture_default_str();
     command->add_option("--embree-kernel", args.embree_kernel,
                         "Triangle test inside Embree's BVH: native (Embree's, fastest) or watertight (the reference's "
                         "double-precision watertight test: no ray slips through a closed mesh, slower)")
-        ->check(CLI::IsMember({"native", "watertight"}))
+        ->check(one_of({"native", "watertight"}))
         ->capture_default_str();
     command->add_option("--sphere-tessellation", args.sphere_tessellation,
                         "Spheres: 0 = exact quadrics, N >= 3 = UV spheres of N slices and N/2 stacks (for comparison)")
         ->check(CLI::Validator(
-            [](std::string& value) {
-              const int n = std::atoi(value.c_str());
-              return n == 0 || (n >= 3 && n <= 4096) ? std::string() : "must be 0 or 3..4096";
+            [whole = whole_number_in(0, 4096)](std::string& value) {
+              std::string problem = whole(value);
+              if (const long n = std::atol(value.c_str()); problem.empty() && n > 0 && n < 3)
+                problem = fmt::format("{} is neither 0 nor 3..4096", value);
+              return problem;
             },
             "0 or 3..4096"))
         ->capture_default_str();
     command->add_option("--ray-offset", args.ray_offset,
                         "Self-intersection policy of secondary rays: robust (scale-independent error bound) "
                         "or fixed:EPS (a constant distance in scene units, e.g. fixed:1e-4)")
+        ->check(kRayOffset)
         ->capture_default_str();
     command->add_option("--threads", args.threads, "Worker threads (0 = all cores)")
-        ->check(CLI::Range(0, 1024))
+        ->check(whole_number_in(0, 1024))
         ->capture_default_str();
     command->add_option_function<std::string>(
               "--memory-limit",
@@ -182,10 +192,9 @@ int run_cli(int argc, char** argv) {
                    "Where S saves the image shown; format by extension. Default: the scene's \"output\", else "
                    "<scene name>.png");
   view->add_option("--screenshot", view_args.screenshot,
-                   "When the render is complete, read the window's pixels back and write them to this 8-bit image "
-                   "(png, ppm, ...)");
-  view->add_flag("--exit-when-done", view_args.exit_when_done,
-                 "Close the window once the render is complete (and the --screenshot written)");
+                   "When the render is complete, read the window's pixels back, write them to this 8-bit image "
+                   "(png, ppm, ...) and close the window (implies --exit-when-done)");
+  view->add_flag("--exit-when-done", view_args.exit_when_done, "Close the window once the render is complete");
   add_image_options(view, view_args.render);
   add_effects_options(view, view_args.render.effects);
   view->add_flag("-q,--quiet", view_args.render.quiet, "No notes or summary lines on stderr");
@@ -209,19 +218,23 @@ int run_cli(int argc, char** argv) {
   add_scene_options(*info, info_scene);
   EffectsOptions info_effects;
   add_effects_options(info, info_effects);
+  bool info_quiet = false;
+  info->add_flag("-q,--quiet", info_quiet, "No warnings or notes on stderr (the description is still printed)");
 
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& error) {
-    const int code = app.exit(error);  // prints help/version (code 0) or the usage error
-    return code == 0 ? 0 : 2;
+    if (error.get_exit_code() == 0) return app.exit(error);  // --help, --version
+    fmt::print(stderr, "rt: error: {}\n", printable_line(usage_message(app, error, argc, argv)));
+    return 2;
   }
+  if (!view_args.screenshot.empty()) view_args.exit_when_done = true;
 
   try {
     if (*render) return run_render(render_args);
     if (*view) return run_view(view_args);
     if (*merge) return run_merge(merge_paths, merge_output, merge_quiet);
-    if (*info) return run_info(info_path, info_gltf, info_scene, info_effects);
+    if (*info) return run_info(info_path, info_gltf, info_scene, info_effects, info_quiet);
   } catch (const UsageError& error) {
     fmt::print(stderr, "rt: error: {}\n", printable_line(error.what()));
     return 2;

@@ -43,6 +43,11 @@ double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
+// "1 sphere", "2 spheres", "0 spheres"; `plural` for irregular nouns.
+std::string count_of(std::size_t n, const std::string& singular, const std::string& plural = "") {
+  return fmt::format("{} {}", n, n == 1 ? singular : plural.empty() ? singular + "s" : plural);
+}
+
 // What the loaders noted (glTF: Scene::notices) and what was made up for the file (LoadReport).
 void print_notices(const SceneOptions& options, const LoadReport& report, const Scene& scene) {
   for (const std::string& notice : scene.notices) fmt::print(stderr, "rt: notice: {}\n", notice);
@@ -180,6 +185,34 @@ Scene load_for_render(const RenderArgs& args, const std::string& scene_path, Loa
   return load_scene_for_command(scene_path, args.gltf, {args.width, args.height, args.max_depth}, args.scene, report);
 }
 
+// --crop, --tile and --debug-pixel against the image size, which is known once the scene is loaded.
+void check_pixel_flags(const RenderArgs& args, const Scene& scene) {
+  const int width = scene.settings.width, height = scene.settings.height;
+  if (const std::optional<PixelRegion>& crop = args.region.crop; crop && !crop->inside(width, height)) {
+    std::vector<std::string> problems;
+    if (crop->x1 > width) problems.push_back(fmt::format("X1 {} > width {}", crop->x1, width));
+    if (crop->y1 > height) problems.push_back(fmt::format("Y1 {} > height {}", crop->y1, height));
+    throw UsageError(fmt::format("{}: --crop {} reaches outside the {}x{} image ({})", scene.source, to_string(*crop),
+                                 width, height, fmt::join(problems, ", ")));
+  }
+  if (args.region.n > height)
+    throw UsageError(fmt::format("{}: --tile {}/{}: the {}-row image cannot be cut into {} tiles of whole rows (at most {})",
+                                 scene.source, args.region.k, args.region.n, height, args.region.n, height));
+  if (const std::vector<int>& pixel = args.debug_pixel; !pixel.empty() && (pixel[0] >= width || pixel[1] >= height))
+    throw UsageError(fmt::format("{}: --debug-pixel {} {} is outside the {}x{} image (X < {}, Y < {})", scene.source,
+                                 pixel[0], pixel[1], width, height, width, height));
+}
+
+// A format rt cannot write, named by -o or --screenshot, is a usage error naming the flag.
+void check_output_flag(const std::string& flag, const std::string& path) {
+  if (path.empty()) return;
+  try {
+    check_image_format(path);
+  } catch (const InputError& error) {
+    throw UsageError(fmt::format("{} {}", flag, error.what()));
+  }
+}
+
 enum class Outcome { rendered, skipped, cancelled };
 
 // Renders one scene (or its region) to its output; returns the exit status of an interrupted
@@ -199,18 +232,16 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
     if (!args.quiet) fmt::print(stderr, "rt: {} exists, skipped (--skip-existing)\n", output);
     return Outcome::skipped;
   }
+  check_pixel_flags(args, scene);
   std::optional<PixelRegion> region = args.region.crop;
   if (args.region.n > 0) {
-    if (args.region.n > scene.settings.height)
-      throw InputError(scene.source, "", fmt::format("--tile {}/{}: the {}-row image cannot be cut into {} tiles of whole "
-                                                     "rows (at most {})", args.region.k, args.region.n,
-                                                     scene.settings.height, args.region.n, scene.settings.height));
     region = tile_region(args.region.k, args.region.n, scene.settings.width, scene.settings.height);
     std::string extension = fs::path(output).extension().string();
     std::transform(extension.begin(), extension.end(), extension.begin(), [](unsigned char c) { return std::tolower(c); });
     if (extension != ".exr")
       throw UsageError(fmt::format("--tile writes an OpenEXR region file for rt merge; '{}' is not .exr", output));
   }
+  check_output_flag("-o", args.output);
   check_output_path(output);  // fail before rendering, not after
   if (!args.stats_path.empty()) check_parent_directory_writable(args.stats_path);
   check_render_memory(scene, region);
@@ -223,7 +254,11 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
   release_object_meshes(scene);
   const double flatten_s = seconds_since(phase_start);
   // Notes and warnings only once the scene has loaded and flattened: a failing run prints one line.
-  if (!args.quiet) print_notices(args.scene, report, scene);
+  if (!args.quiet) {
+    print_notices(args.scene, report, scene);
+    if (const std::string note = lossy_format_note(output); !note.empty())
+      fmt::print(stderr, "rt: note: {}: {}\n", output, note);
+  }
   warn_about_dropped_triangles(scene, flat, args.quiet);
 
   phase_start = Clock::now();
@@ -319,26 +354,37 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
   if (args.explain) fmt::print("{}", explain_render(result, scene));
   if (!args.quiet)
     fmt::print(
-        "{}: {}x{}{}, {} triangles, {} spheres, {} lights, {:.3f} s render, {:.3f} s total, {:.2f} Mrays/s ({}, {} "
-        "threads)\n",
-        output, scene.settings.width, scene.settings.height, region ? fmt::format(" pixels {}", to_string(*region)) : "",
-        flat.triangle_count(), flat.spheres.size(), scene.lights.size(), result.seconds, total_s, mrays,
-        to_string(batch.accel_kind), batch.threads);
+        "{}: {}x{}{}, {}, {}, {}{}, {:.3f} s render, {:.3f} s total, {:.2f} Mrays/s ({}, {})\n", output,
+        scene.settings.width, scene.settings.height, region ? fmt::format(" pixels {}", to_string(*region)) : "",
+        count_of(flat.triangle_count(), "triangle"), count_of(flat.spheres.size(), "sphere"),
+        count_of(scene.lights.size(), "light"),
+        result.plan.emitters.empty() ? "" : ", " + count_of(result.plan.emitters.size(), "emitter"), result.seconds, total_s, mrays,
+        to_string(batch.accel_kind), count_of(std::size_t(batch.threads), "thread"));
   return Outcome::rendered;
 }
 
+// Where a batch scene's image will go, known before loading it: output_before_loading, else the
+// file's declared "output" (read without loading the scene), else <scene stem>.png.
+std::string planned_output(const RenderArgs& args, const std::string& scene_path) {
+  if (auto known = output_before_loading(args, scene_path)) return *known;
+  const std::string name = declared_output(scene_path).value_or(fs::path(scene_path).stem().string() + ".png");
+  return args.region.given() ? region_output(name, args.region) : name;
+}
+
 // Batch mistakes found before any rendering: -o, --stats or --debug-pixel with several scenes,
-// and two scenes that would write the same --outdir file.
+// and two scenes that would write the same file (Duck.gltf and Duck.glb both make Duck.png).
 void check_batch(const RenderArgs& args) {
   if (args.scene_paths.size() < 2) return;
   if (!args.output.empty()) throw UsageError("-o names one output file; with several scenes use --outdir DIR");
   if (!args.stats_path.empty() || !args.debug_pixel.empty())
     throw UsageError("--stats and --debug-pixel take one scene");
-  std::map<std::string, std::string> scene_of;
-  for (const std::string& path : args.scene_paths)
-    if (const auto output = output_before_loading(args, path))
-      if (const auto [it, inserted] = scene_of.emplace(*output, path); !inserted)
-        throw UsageError(fmt::format("'{}' and '{}' would both write {}", it->second, path, *output));
+  std::map<fs::path, std::string> scene_of;  // absolute, normalised output path -> the scene writing it
+  for (const std::string& path : args.scene_paths) {
+    const std::string output = planned_output(args, path);
+    if (const auto [it, inserted] = scene_of.emplace(fs::absolute(output).lexically_normal(), path); !inserted)
+      throw UsageError(fmt::format("'{}' and '{}' would both write {}: render them in separate runs, each with -o",
+                                   it->second, path, output));
+  }
 }
 
 }  // namespace
@@ -401,8 +447,10 @@ int run_view(const ViewArgs& args) {
   Scene scene = load_for_render(args.render, args.scene_path, report);
   ViewOptions options;
   options.save_path = args.render.output.empty() ? default_output(scene, args.scene_path) : args.render.output;
+  check_output_flag("-o", args.render.output);
   check_output_path(options.save_path);
   if (!args.screenshot.empty()) {
+    check_output_flag("--screenshot", args.screenshot);
     check_output_path(args.screenshot);
     if (writes_float(args.screenshot))
       throw InputError(args.screenshot, "", "a screenshot holds the window's 8-bit pixels; use .png, .ppm or .tif");
@@ -434,11 +482,11 @@ int run_merge(const std::vector<std::string>& paths, const std::string& output, 
 }
 
 int run_info(const std::string& scene_path, const GltfOptions& gltf, const SceneOptions& scene_options,
-             const EffectsOptions& effects) {
+             const EffectsOptions& effects, bool quiet) {
   LoadReport report;
   const Scene scene = load_scene_for_command(scene_path, gltf, {}, scene_options, report);
   const FlatScene flat = flatten_scene(scene);
-  print_notices(scene_options, report, scene);
+  if (!quiet) print_notices(scene_options, report, scene);
   std::size_t models = 0;
   for (const Node& node : scene.nodes) models += node.models.size();
   const Bounds3d bounds = flat_bounds(flat);
@@ -449,9 +497,10 @@ int run_info(const std::string& scene_path, const GltfOptions& gltf, const Scene
              scene.settings.background.g, scene.settings.background.b);
   fmt::print("camera      eye ({}, {}, {}), target ({}, {}, {}), up ({}, {}, {}), fovy {} deg\n", c.eye.x, c.eye.y,
              c.eye.z, c.target.x, c.target.y, c.target.z, c.up.x, c.up.y, c.up.z, c.fovy_degrees);
-  fmt::print("graph       {} nodes, {} models\n", scene.nodes.size(), models);
-  fmt::print("geometry    {} triangles, {} vertices, {} degenerate triangles dropped, {} spheres (exact)\n",
-             flat.triangle_count(), flat.positions.size(), flat.degenerate_triangles_dropped, flat.spheres.size());
+  fmt::print("graph       {}, {}\n", count_of(scene.nodes.size(), "node"), count_of(models, "model"));
+  fmt::print("geometry    {}, {}, {} dropped, {} (exact)\n", count_of(flat.triangle_count(), "triangle"),
+             count_of(flat.positions.size(), "vertex", "vertices"),
+             count_of(flat.degenerate_triangles_dropped, "degenerate triangle"), count_of(flat.spheres.size(), "sphere"));
   if (!bounds.empty())
     fmt::print("bounds      ({:.7g}, {:.7g}, {:.7g}) .. ({:.7g}, {:.7g}, {:.7g})\n", bounds.lo.x, bounds.lo.y,
                bounds.lo.z, bounds.hi.x, bounds.hi.y, bounds.hi.z);

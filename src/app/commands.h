@@ -69,8 +69,9 @@ int run_view(const ViewArgs& args);
 // throws on error.
 int run_merge(const std::vector<std::string>& paths, const std::string& output, bool quiet);
 
-// rt info: what a scene contains, its framing and its effects plan. Returns 0; throws on error.
+// rt info: what a scene contains, its framing and its effects plan on stdout; the loaders' notes and
+// warnings on stderr unless `quiet`. Returns 0; throws on error.
 int run_info(const std::string& scene_path, const GltfOptions& gltf, const SceneOptions& scene_options,
-             const EffectsOptions& effects);
+             const EffectsOptions& effects, bool quiet);
 
 }  // namespace rt

@@ -1,5 +1,6 @@
 #include "rt/app/scene_options.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 
@@ -49,6 +50,16 @@ Color read_color(const std::vector<double>& values, std::size_t first, const std
 }
 
 std::string flag_of(const std::string& field) { return "--" + field; }
+
+// "-z" for a direction along an axis, else its unit vector: "(-0.42, -0.34, -0.84)".
+std::string direction_text(const Vec3d& direction) {
+  const char* const axes[] = {"x", "y", "z"};
+  for (int axis = 0; axis < 3; ++axis)
+    if (direction[(axis + 1) % 3] == 0.0 && direction[(axis + 2) % 3] == 0.0 && direction[axis] != 0.0)
+      return fmt::format("{}{}", direction[axis] > 0.0 ? "+" : "-", axes[axis]);
+  const Vec3d unit = glm::normalize(direction);
+  return fmt::format("({:.2f}, {:.2f}, {:.2f})", unit.x, unit.y, unit.z);
+}
 
 }  // namespace
 
@@ -129,9 +140,7 @@ std::vector<std::string> scene_notices(const SceneOptions& options, const LoadRe
   const bool headlight = report.headlight_added && !options.lights_given();
   if (framed || headlight) {
     std::string made;
-    if (framed)
-      made = fmt::format("framed its bounding box looking along {}z (--eye/--target to choose)",
-                         report.view.z > 0 ? "+" : "-");
+    if (framed) made = fmt::format("framed its bounding box looking along {} (--eye/--target to choose)", direction_text(report.view));
     if (headlight)
       made += std::string(framed ? "; " : "") + "added a headlight at the eye (--point-light/--directional-light to choose)";
     notices.push_back(fmt::format("note: {} has no {}: {}", scene.source,
@@ -140,16 +149,36 @@ std::vector<std::string> scene_notices(const SceneOptions& options, const LoadRe
   return notices;
 }
 
+void apply_image_overrides(const ImageOverrides& image, Scene& scene) {
+  RenderSettings& settings = scene.settings;
+  // One side given: the other (`other`) keeps the scene's aspect ratio, rounded to the nearest pixel.
+  const auto follow = [](int given, int other_now, int given_now, const char* flag, const char* other) {
+    const double side = std::max(1.0, std::round(double(given) * other_now / given_now));
+    if (side > kMaxImageSide)
+      throw UsageError(fmt::format("--{} {} at the scene's aspect ratio makes the {} {:.0f} pixels (at most {}); give "
+                                   "--{} too", flag, given, other, side, kMaxImageSide, other));
+    return int(side);
+  };
+  if (image.width && !image.height)
+    settings.height = follow(*image.width, settings.height, settings.width, "width", "height");
+  if (image.height && !image.width)
+    settings.width = follow(*image.height, settings.width, settings.height, "height", "width");
+  if (image.width) settings.width = *image.width;
+  if (image.height) settings.height = *image.height;
+  if (image.max_depth) settings.max_depth = *image.max_depth;
+}
+
 Scene load_scene_for_command(const std::string& path, const GltfOptions& gltf, const ImageOverrides& image,
                              const SceneOptions& options, LoadReport& report) {
   // --gltf-scene and --camera choose among what a glTF file holds; other formats have one of each.
   if ((gltf.scene || !gltf.camera.empty()) && !is_gltf_path(path))
-    throw UsageError(fmt::format("--gltf-scene and --camera apply to .gltf/.glb scenes only, not '{}'",
+    throw UsageError(fmt::format("{} applies to .gltf/.glb scenes only, not '{}'",
+                                 gltf.scene && !gltf.camera.empty() ? "--gltf-scene and --camera each"
+                                 : gltf.scene                       ? "--gltf-scene"
+                                                                    : "--camera",
                                  path.empty() ? "<built-in default>" : path));
   Scene scene = path.empty() ? make_default_scene() : load_scene(path, gltf, &report);
-  if (image.width) scene.settings.width = *image.width;
-  if (image.height) scene.settings.height = *image.height;
-  if (image.max_depth) scene.settings.max_depth = *image.max_depth;
+  apply_image_overrides(image, scene);
   apply_scene_options(options, report, scene);
   validate_scene(scene);
   return scene;

@@ -8,6 +8,7 @@
 #include <system_error>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <png.h>
 
 #include "rt/core/error.h"
@@ -107,18 +108,40 @@ std::vector<unsigned char> encode_ppm(int width, int height, const std::vector<s
   return encoded;
 }
 
-// Throws InputError unless rt or OpenImageIO can write `path`'s format.
-void check_format(const std::string& path) {
-  const std::string ext = lower_extension(path);
-  if (ext.empty()) throw InputError(path, "", "output file has no extension to choose an image format by");
-  if (!is_native_format(ext) && !oiio_module().has_writer(path))
-    throw InputError(path, "", fmt::format("unknown image format '{}'", ext));
-}
-
 }  // namespace
 
+void check_image_format(const std::string& path) {
+  const std::string ext = lower_extension(path);
+  const auto formats = [] {
+    // The common formats by name; the rest (.dpx, .fits, .sgi, ...) by count.
+    const std::vector<std::string> writable = oiio_module().writable_extensions();
+    std::vector<std::string> common;
+    for (const char* name : {".exr", ".hdr", ".tif", ".jpg", ".bmp", ".tga", ".webp", ".gif"})
+      if (std::find(writable.begin(), writable.end(), name) != writable.end()) common.push_back(name);
+    const std::size_t others = writable.size() - common.size() - std::count_if(writable.begin(), writable.end(),
+                                                                               [](const std::string& e) {
+                                                                                 return is_native_format(e);
+                                                                               });
+    return fmt::format("writable: .png .ppm {} and {} more extensions of OpenImageIO; float: .exr .hdr",
+                       fmt::join(common, " "), others);
+  };
+  if (ext.empty())
+    throw InputError(path, "", "output file has no extension to choose an image format by (" + formats() + ")");
+  if (!is_native_format(ext) && !oiio_module().has_writer(path))
+    throw InputError(path, "", fmt::format("unknown image format '{}' ({})", ext, formats()));
+}
+
+std::string lossy_format_note(const std::string& path) {
+  const std::string ext = lower_extension(path);
+  if (ext == ".gif") return "GIF keeps at most 256 colours; .png keeps every pixel exactly";
+  if (ext == ".jpg" || ext == ".jpeg" || ext == ".jpe" || ext == ".webp" || ext == ".heic" || ext == ".heif" ||
+      ext == ".avif" || ext == ".jp2" || ext == ".j2k")
+    return fmt::format("{} is compressed lossily; .png keeps every pixel exactly", ext.substr(1));
+  return "";
+}
+
 void check_output_path(const std::string& path) {
-  check_format(path);
+  check_image_format(path);
   check_parent_directory_writable(path);
 }
 
@@ -145,13 +168,13 @@ void encode_and_write(const std::string& path, const Image& image, bool as_float
 }  // namespace
 
 void write_image(const Image& image, const std::string& path, const ImageHeader& header) {
-  check_format(path);
+  check_image_format(path);
   const bool as_float = writes_float(path);
   encode_and_write(path, image, as_float, as_float ? std::vector<std::uint8_t>{} : to_rgb8(image), header);
 }
 
 void write_rgb8(int width, int height, const std::vector<std::uint8_t>& rgb8, const std::string& path) {
-  check_format(path);
+  check_image_format(path);
   if (writes_float(path))
     throw InputError(path, "", "an 8-bit image cannot be written in a float format; use .png, .ppm or .tif");
   if (rgb8.size() != std::size_t(width) * std::size_t(height) * 3)

@@ -73,7 +73,17 @@ class GltfReader {
   [[noreturn]] void fail(const std::string& where, const std::string& reason) const {
     throw InputError(path_, where, reason);
   }
+  // A --gltf-scene or --camera value this file cannot satisfy: a usage error naming the flag.
+  [[noreturn]] void fail_flag(const std::string& reason) const { throw UsageError(path_ + ": " + reason); }
   void count(const std::string& what) { ++skipped_[what]; }
+  // " (cameras: 0 'Front', 1 'Side')": what --camera can name, for its error message.
+  std::string camera_names() const {
+    if (gltf_.cameras.empty()) return " (the file has no cameras)";
+    std::string names;
+    for (std::size_t i = 0; i < gltf_.cameras.size() && i < 8; ++i)
+      names += fmt::format("{}{} '{}'", i == 0 ? "" : ", ", i, gltf_.cameras[i].name);
+    return " (cameras: " + names + (gltf_.cameras.size() > 8 ? ", ...)" : ")");
+  }
 
   template <class T>
   const T& element(const std::vector<T>& array, int index, const std::string& array_name, const std::string& where) const {
@@ -494,7 +504,7 @@ std::vector<int> GltfReader::scene_roots() {
   int chosen = -1;
   if (options_.scene) {
     if (*options_.scene < 0 || static_cast<std::size_t>(*options_.scene) >= scene_count)
-      fail("/scenes", fmt::format("--gltf-scene {} is out of range (the file has {} scene(s))", *options_.scene, scene_count));
+      fail_flag(fmt::format("--gltf-scene {} is out of range (the file has {} scene(s))", *options_.scene, scene_count));
     chosen = *options_.scene;
   } else if (gltf_.defaultScene >= 0) {
     element(gltf_.scenes, gltf_.defaultScene, "scene", "/scene");
@@ -533,20 +543,21 @@ void GltfReader::read_camera(const std::vector<Placed>& placed, Scene& scene) {
     if (std::all_of(wanted.begin(), wanted.end(), [](char c) { return std::isdigit(static_cast<unsigned char>(c)); })) {
       camera = wanted.size() < 9 ? std::stoi(wanted) : -1;
       if (camera < 0 || static_cast<std::size_t>(camera) >= gltf_.cameras.size())
-        fail("/cameras", fmt::format("--camera {} is out of range (the file has {} camera(s))", wanted, gltf_.cameras.size()));
+        fail_flag(fmt::format("--camera {} is out of range (the file has {} camera(s))", wanted, gltf_.cameras.size()));
     } else {
       for (std::size_t i = 0; i < gltf_.cameras.size() && camera < 0; ++i)
         if (gltf_.cameras[i].name == wanted) camera = static_cast<int>(i);
       for (const Placed& p : placed)
         if (camera < 0 && gltf_.nodes[static_cast<std::size_t>(p.node)].name == wanted)
           camera = gltf_.nodes[static_cast<std::size_t>(p.node)].camera;
-      if (camera < 0) fail("/cameras", fmt::format("no camera or camera node is named '{}'", wanted));
+      if (camera < 0) fail_flag(fmt::format("--camera '{}': no camera or camera node has this name{}", wanted, camera_names()));
     }
     chosen = is_placed(camera);
-    if (!chosen) fail(child("/cameras", static_cast<std::size_t>(camera)), "no node of the selected scene uses this camera");
+    if (!chosen)
+      fail_flag(fmt::format("--camera {}: no node of the selected scene uses camera {}", wanted, camera));
     if (gltf_.cameras[static_cast<std::size_t>(camera)].type != "perspective")
-      fail(child(child("/cameras", static_cast<std::size_t>(camera)), "type"),
-           fmt::format("'{}' cameras are not supported (only perspective)", gltf_.cameras[static_cast<std::size_t>(camera)].type));
+      fail_flag(fmt::format("--camera {}: camera {} is '{}'; such cameras are not supported (only perspective)", wanted,
+                            camera, gltf_.cameras[static_cast<std::size_t>(camera)].type));
   } else {
     bool skipped = false;
     for (const Placed& p : placed) {

@@ -482,8 +482,33 @@ bool is_gltf_path(const std::string& path) {
   return ext == ".gltf" || ext == ".glb";
 }
 
+std::optional<std::string> declared_output(const std::string& path) {
+  const std::string ext = lower_extension(path);
+  if (ext != ".json" && ext != ".test") return std::nullopt;
+  std::ifstream file(path, std::ios::binary);
+  if (!file || fs::is_directory(path)) return std::nullopt;
+  std::ostringstream text;
+  text << file.rdbuf();
+  if (ext == ".json") {
+    const json document = json::parse(text.str(), nullptr, /*allow_exceptions=*/false, /*ignore_comments=*/true);
+    if (!document.is_object() || !document.contains("output") || !document["output"].is_string()) return std::nullopt;
+    return document["output"].get<std::string>();
+  }
+  // .test: the last "output FILENAME" line counts, as in the loader.
+  std::optional<std::string> output;
+  std::istringstream lines(text.str());
+  for (std::string line; std::getline(lines, line);) {
+    std::istringstream words(line);
+    std::string command, name, extra;
+    if (words >> command >> name && command == "output" && !(words >> extra)) output = name;
+  }
+  return output;
+}
+
 Scene load_scene(const std::string& path, const GltfOptions& gltf, LoadReport* report) {
   const std::string ext = lower_extension(path);
+  if (fs::is_directory(path))
+    throw InputError(path, "", "is a directory, not a scene file (name the scene files in it, e.g. DIR/*.gltf)");
   if (ext == ".json") return parse_scene_json(read_text_file(path), path);
   if (ext == ".test") return load_test_scene(path);  // CSE167x ray-tracer scenes, validated
   if (is_gltf_path(path)) return load_gltf_scene(path, gltf, report);  // validated

@@ -8,6 +8,7 @@
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/imageio.h>
+#include <OpenImageIO/strutil.h>
 #include <OpenImageIO/texture.h>
 
 namespace rt {
@@ -78,6 +79,33 @@ class Oiio final : public OiioModule {
     const bool known = OIIO::ImageOutput::create(path) != nullptr;
     if (!known) OIIO::geterror();  // clear OIIO's pending message; the caller says it better
     return known;
+  }
+
+  std::vector<std::string> writable_extensions() const override {
+    // output_format_list: "bmp,dpx,...;" extension_list: "tiff:tif,tiff;jpeg:jpg,jpe,jpeg;..."
+    std::vector<std::string> writers;
+    OIIO::Strutil::split(OIIO::get_string_attribute("output_format_list"), writers, ",");
+    std::vector<std::string> extensions;
+    std::vector<std::string> formats;
+    OIIO::Strutil::split(OIIO::get_string_attribute("extension_list"), formats, ";");
+    for (const std::string& entry : formats) {
+      const std::size_t colon = entry.find(':');
+      const std::string name = entry.substr(0, colon);
+      // "null" and "term" write no file (nothing, or the terminal).
+      if (colon == std::string::npos || name == "null" || name == "term" ||
+          std::find(writers.begin(), writers.end(), name) == writers.end())
+        continue;
+      std::vector<std::string> names;
+      OIIO::Strutil::split(entry.substr(colon + 1), names, ",");
+      for (const std::string& ext : names) {
+        std::string dotted(1, '.');  // not "." + ext: GCC 12 -Wrestrict false positive
+        dotted += OIIO::Strutil::lower(ext);
+        if (has_writer("x" + dotted)) extensions.push_back(dotted);  // the list names some it cannot write (.pfm)
+      }
+    }
+    std::sort(extensions.begin(), extensions.end());
+    extensions.erase(std::unique(extensions.begin(), extensions.end()), extensions.end());
+    return extensions;
   }
 
   std::vector<unsigned char> encode(const std::string& path, const Image& image, bool as_float,

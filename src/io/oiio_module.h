@@ -38,6 +38,9 @@ class OiioModule {
   // True when OpenImageIO has a writer for the format named by `path`'s extension.
   virtual bool has_writer(const std::string& path) const = 0;
 
+  // The extensions (lower case, with the dot) of every format OpenImageIO writes to a file, sorted.
+  virtual std::vector<std::string> writable_extensions() const = 0;
+
   // Encodes `image` in memory for `path`'s format, as float when `as_float`, else as 8-bit RGB
   // `rgb8` (to_rgb8 of the image). EXR gets zip compression and `header`. Empty `error` on success.
   virtual std::vector<unsigned char> encode(const std::string& path, const Image& image, bool as_float,

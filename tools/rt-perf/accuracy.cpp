@@ -11,6 +11,7 @@
 
 #include <fmt/format.h>
 
+#include "rt/app/scene_options.h"
 #include "rt/core/error.h"
 #include "rt/flatten/flatten.h"
 #include "rt/io/atomic_file.h"
@@ -101,12 +102,7 @@ int run_accuracy(const AccuracyArgs& args) {
     throw InputError(args.out, "", "cannot create the output directory" + (error ? ": " + error.message() : ""));
 
   Scene scene = args.scene.empty() ? make_default_scene() : load_scene(args.scene);
-  if (args.width && !args.height)
-    scene.settings.height = std::max(1, int(std::lround(double(scene.settings.height) * *args.width / scene.settings.width)));
-  if (args.height && !args.width)
-    scene.settings.width = std::max(1, int(std::lround(double(scene.settings.width) * *args.height / scene.settings.height)));
-  if (args.width) scene.settings.width = *args.width;
-  if (args.height) scene.settings.height = *args.height;
+  apply_image_overrides({args.width, args.height, std::nullopt}, scene);
   validate_scene(scene);
   const int scene_depth = scene.settings.max_depth;
   const FlatScene flat = flatten_scene(scene);

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "rt/core/error.h"
 #include "rt/io/load_scene.h"
 #include "rt/scene/scene.h"
 
@@ -15,13 +16,6 @@ class App;
 }
 
 namespace rt {
-
-// A command-line mistake found after parsing (e.g. a camera made unusable by a flag): the CLI
-// prints what() and exits with status 2.
-class UsageError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
 
 // Values of the flags as parsed; empty vectors and nullopt mean "not given".
 struct SceneOptions {
@@ -51,6 +45,11 @@ void apply_scene_options(const SceneOptions& options, const LoadReport& report, 
 struct ImageOverrides {
   std::optional<int> width, height, max_depth;
 };
+
+// Applies the overrides to a loaded scene. With only one of width and height given, the other
+// follows the scene's aspect ratio (rounded, at least 1 pixel); UsageError if it would exceed
+// kMaxImageSide.
+void apply_image_overrides(const ImageOverrides& image, Scene& scene);
 
 // A scene as the commands load it: the file at `path` (empty: the built-in default scene), the
 // image overrides, then the scene flags (apply_scene_options), validated. Throws UsageError when

@@ -16,6 +16,14 @@ class InputError : public std::runtime_error {
   explicit InputError(const std::string& message) : std::runtime_error(message) {}
 };
 
+// A bad command-line value found after parsing, when it meets the scene (a --camera the file
+// lacks, a --crop beyond the image, a camera made unusable by a flag). what() names the flag; the
+// CLI prints it and exits with status 2, as for any usage error.
+class UsageError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 // A failure outside the input's control (Embree, file system, out of memory). Exit status 1.
 class RuntimeError : public std::runtime_error {
  public:

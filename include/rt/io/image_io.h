@@ -23,6 +23,14 @@ std::vector<std::uint8_t> to_rgb8(const Image& image);
 // True for extensions written as linear float (.exr, .hdr); everything else is 8-bit.
 bool writes_float(const std::string& path);
 
+// Throws InputError unless rt or OpenImageIO can write the format named by `path`'s extension
+// (compared ignoring case); the message lists the extensions that can be written.
+void check_image_format(const std::string& path);
+
+// A note for the user when `path`'s format does not keep 8-bit pixels exactly (GIF's palette,
+// JPEG's and WebP's lossy compression), else empty.
+std::string lossy_format_note(const std::string& path);
+
 // Throws InputError unless rt or OpenImageIO can write the format named by `path`'s extension and the
 // directory `path` names exists and is writable. Lets callers refuse a bad output before rendering.
 void check_output_path(const std::string& path);

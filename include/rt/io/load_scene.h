@@ -1,6 +1,7 @@
 #pragma once
 // Scene loading, one entry point for every format.
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -15,6 +16,11 @@ namespace rt {
 // lack a camera or lights (OBJ, glTF).
 // Throws InputError naming the file, the line or JSON path, and the reason.
 Scene load_scene(const std::string& path, const GltfOptions& gltf = {}, LoadReport* report = nullptr);
+
+// The output file a scene file names for itself (.json "output", .test "output"), read without
+// loading the scene, so that a batch can check its outputs before rendering. nullopt when the file
+// names none, its format has no such field, or it cannot be read or parsed (load_scene says why).
+std::optional<std::string> declared_output(const std::string& path);
 
 // Whether load_scene reads `path` as glTF (by extension).
 bool is_gltf_path(const std::string& path);
