@@ -202,7 +202,7 @@ TEST_CASE("cli: a mistyped command or flag gets the nearest name suggested", "[c
   CHECK(run_rt(dir, "render --help").status == 0);
 }
 
-TEST_CASE("cli: notes say what was made up truthfully; a directory is not an unknown format", "[cli]") {
+TEST_CASE("cli: notes say what was made up truthfully, and a directory is not an unknown format", "[cli]") {
   TempDir dir;
   write_file(dir / "bare.gltf", kBareGltf);
   write_file(dir / "tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
@@ -223,7 +223,7 @@ TEST_CASE("cli: notes say what was made up truthfully; a directory is not an unk
   CHECK_THAT(directory.err, !Catch::Contains("unsupported scene format"));
 }
 
-TEST_CASE("cli: rt info -q is silent on stderr; counts are singular when one", "[cli]") {
+TEST_CASE("cli: rt info -q is silent on stderr, and counts are singular when one", "[cli]") {
   TempDir dir;
   write_file(dir / "tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
   const RtRun noisy = run_rt(dir, "info tri.obj");

@@ -27,7 +27,7 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-// Roughness at and above which a surface gets no mirror reflection (see docs/scene-formats.md).
+// Roughness at and above which a surface gets no mirror reflection (see docs/input-formats.md).
 constexpr double kMirrorRoughness = 0.3;
 // Largest accessor element count accepted (keeps a malformed count from exhausting memory).
 constexpr std::size_t kMaxAccessorCount = std::size_t(1) << 28;
@@ -409,7 +409,7 @@ Texture GltfReader::read_texture(const tinygltf::TextureInfo& info, const std::s
   return readable->second ? result : Texture{};
 }
 
-// pbrMetallicRoughness -> Blinn-Phong; the mapping and its reasons are in docs/scene-formats.md.
+// pbrMetallicRoughness -> Blinn-Phong; the mapping and its reasons are in docs/input-formats.md.
 Material GltfReader::read_material(int index) {
   Material material;
   if (index < 0) {
@@ -630,7 +630,7 @@ void GltfReader::read_lights(const std::vector<Placed>& placed, Scene& scene) {
       fail(light_at, "colour and intensity must be >= 0");
     if (source.range > 0.0) count("light ranges ignored (lights reach everywhere)");
     Light light;
-    // candela (point, spot) or lux (directional) -> our radiometric colour: / pi, see docs/scene-formats.md.
+    // candela (point, spot) or lux (directional) -> our radiometric colour: / pi, see docs/input-formats.md.
     light.color = Color(color * source.intensity / kPi);
     const Vec3d origin(p.world_from_node * Vec4d(0.0, 0.0, 0.0, 1.0));
     const Vec3d forward(p.world_from_node * Vec4d(0.0, 0.0, -1.0, 0.0));

@@ -25,7 +25,7 @@ std::optional<std::string> declared_output(const std::string& path);
 // Whether load_scene reads `path` as glTF (by extension).
 bool is_gltf_path(const std::string& path);
 
-// Parses the native JSON scene format (see docs/scene-format.md) from `text`; `path` names the
+// Parses the native JSON scene format (see docs/json-scene-format.md) from `text`; `path` names the
 // source in messages and anchors relative mesh paths. Comments (// and /* */) are allowed.
 Scene parse_scene_json(const std::string& text, const std::string& path);
 
