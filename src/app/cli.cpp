@@ -23,7 +23,7 @@ std::string parse_tile(const std::string& text, RegionRequest& region) {
   int k = 0, n = 0;
   char rest = 0;
   if (std::sscanf(text.c_str(), "%d/%d%c", &k, &n, &rest) != 2 || k < 1 || n < 1 || k > n)
-    return "expected K/N with 1 <= K <= N, e.g. 3/16";
+    return fmt::format("'{}': expected K/N with 1 <= K <= N, e.g. 3/16", text);
   region.k = k;
   region.n = n;
   return "";
@@ -170,7 +170,8 @@ int run_cli(int argc, char** argv) {
               "--memory-limit",
               [&args](const std::string& text) {
                 const std::optional<std::uint64_t> bytes = parse_bytes(text);
-                if (!bytes || *bytes == 0) throw CLI::ValidationError("--memory-limit", "expected a size such as 512M or 8G");
+                if (!bytes || *bytes == 0)
+                  throw CLI::ValidationError("--memory-limit", fmt::format("'{}' is not a size such as 512M or 8G", text));
                 args.memory_limit = *bytes;
               },
               "Refuse (with a clear error, before allocating) work that needs more memory than this, e.g. 8G; "

@@ -83,7 +83,7 @@ CLI::Validator whole_number_in(long long lo, long long hi) {
         if (errno == ERANGE || value < lo || value > hi) return fmt::format("{} is outside {}..{}", text, lo, hi);
         return "";
       },
-      fmt::format("INT in {}..{}", lo, hi));
+      fmt::format("{}..{}", lo, hi));
 }
 
 CLI::Validator number_in(double lo, double hi) {
@@ -96,7 +96,7 @@ CLI::Validator number_in(double lo, double hi) {
         if (value < lo || value > hi) return fmt::format("{} is outside [{}, {}]", text, lo, hi);
         return "";
       },
-      fmt::format("NUMBER in [{}, {}]", lo, hi));
+      fmt::format("[{}, {}]", lo, hi));
 }
 
 const CLI::Validator kRayOffset(
