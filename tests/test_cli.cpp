@@ -33,13 +33,7 @@ Run run_rt(const rt_test::TempDir& cwd, const std::string& args) { return rt_tes
 std::size_t line_count(const std::string& text) { return std::count(text.begin(), text.end(), '\n'); }
 
 // A small valid scene; the bad-input cases below each break one thing in it.
-const char* const kGoodScene = R"({
-  "image": { "width": 32, "height": 24 },
-  "camera": { "eye": [0, 0, 5], "target": [0, 0, 0], "up": [0, 1, 0], "fovy": 45 },
-  "materials": { "red": { "diffuse": [0.8, 0.1, 0.1], "ambient": 0.1 } },
-  "lights": [ { "type": "directional", "direction": [1, 1, 1] } ],
-  "nodes": [ { "models": [ { "geometry": { "type": "sphere" }, "material": "red" } ] } ]
-})";
+const std::string kGoodScene = rt_test::small_json_scene();
 
 std::string replace(std::string text, const std::string& from, const std::string& to) {
   const std::size_t at = text.find(from);

@@ -18,22 +18,12 @@ namespace {
 
 using rt_test::RtRun;
 using rt_test::TempDir;
+using rt_test::small_json_scene;
 using rt_test::write_file;
 
 RtRun run_rt(const TempDir& cwd, const std::string& args) { return rt_test::run_rt_in(cwd, args); }
 
 std::size_t line_count(const std::string& text) { return std::count(text.begin(), text.end(), '\n'); }
-
-// A 32x24 scene: one sphere, one light. `extra` is spliced in at the top level ("output": ...).
-std::string small_scene(const std::string& extra = "") {
-  return R"({ )" + extra + R"(
-  "image": { "width": 32, "height": 24 },
-  "camera": { "eye": [0, 0, 5], "target": [0, 0, 0], "up": [0, 1, 0], "fovy": 45 },
-  "materials": { "red": { "diffuse": [0.8, 0.1, 0.1], "ambient": 0.1 } },
-  "lights": [ { "type": "directional", "direction": [1, 1, 1] } ],
-  "nodes": [ { "models": [ { "geometry": { "type": "sphere" }, "material": "red" } ] } ]
-})";
-}
 
 // A glTF file with one triangle, no camera and no lights (the buffer is the triangle
 // (0,0,0), (1,0,0), (0,1,0) as float32, base64).
@@ -58,11 +48,11 @@ TEST_CASE("cli: a batch whose scenes would write the same file is refused before
   TempDir dir;
   fs::create_directories(dir / "a");
   fs::create_directories(dir / "b");
-  write_file(dir / "a/scene.json", small_scene());
-  write_file(dir / "b/scene.json", small_scene());                          // same stem: both scene.png
-  write_file(dir / "one.json", small_scene(R"("output": "same.png",)"));     // the same declared output
-  write_file(dir / "two.json", small_scene(R"("output": "./same.png",)"));
-  write_file(dir / "three.json", small_scene());
+  write_file(dir / "a/scene.json", small_json_scene());
+  write_file(dir / "b/scene.json", small_json_scene());                          // same stem: both scene.png
+  write_file(dir / "one.json", small_json_scene(R"("output": "same.png",)"));     // the same declared output
+  write_file(dir / "two.json", small_json_scene(R"("output": "./same.png",)"));
+  write_file(dir / "three.json", small_json_scene());
 
   for (const char* batch : {"a/scene.json b/scene.json", "a/scene.json three.json b/scene.json", "one.json two.json",
                             "a/scene.json b/scene.json --outdir out"}) {
@@ -89,7 +79,7 @@ TEST_CASE("cli: a batch whose scenes would write the same file is refused before
 
 TEST_CASE("cli: --width or --height alone keeps the scene's aspect ratio, both are taken as given", "[cli]") {
   TempDir dir;
-  write_file(dir / "scene.json", small_scene());  // 32x24
+  write_file(dir / "scene.json", small_json_scene());  // 32x24
   struct Case {
     std::string flags;
     int width, height;
@@ -117,7 +107,7 @@ TEST_CASE("cli: --width or --height alone keeps the scene's aspect ratio, both a
 
 TEST_CASE("cli: every bad flag value is a usage error (status 2) naming the flag, and writes nothing", "[cli]") {
   TempDir dir;
-  write_file(dir / "scene.json", small_scene());
+  write_file(dir / "scene.json", small_json_scene());
   write_file(dir / "bare.gltf", kBareGltf);
   struct Case {
     std::string args, message;
@@ -235,7 +225,7 @@ TEST_CASE("cli: rt info -q is silent on stderr, and counts are singular when one
   CHECK(quiet.out == noisy.out);
   CHECK_THAT(quiet.out, Catch::Contains("1 triangle, 3 vertices, 0 degenerate triangles dropped, 0 spheres"));
 
-  write_file(dir / "scene.json", small_scene());
+  write_file(dir / "scene.json", small_json_scene());
   const RtRun render = run_rt(dir, "render scene.json --threads 1");
   REQUIRE(render.status == 0);
   CHECK_THAT(render.out, Catch::Contains("0 triangles, 1 sphere, 1 light,") && Catch::Contains("(embree, 1 thread)"));
@@ -243,7 +233,7 @@ TEST_CASE("cli: rt info -q is silent on stderr, and counts are singular when one
 
 TEST_CASE("cli: outputs in any case of extension, lossy formats noted, formats listed", "[cli]") {
   TempDir dir;
-  write_file(dir / "scene.json", small_scene());
+  write_file(dir / "scene.json", small_json_scene());
   REQUIRE(run_rt(dir, "render -q scene.json -o upper.PNG").status == 0);
   CHECK(magic(dir / "upper.PNG", 4) == "\x89PNG");
   const RtRun gif = run_rt(dir, "render scene.json -o out.gif");

@@ -119,4 +119,16 @@ inline RtRun run_in(const TempDir& cwd, const std::string& executable, const std
 
 inline RtRun run_rt_in(const TempDir& cwd, const std::string& args) { return run_in(cwd, RT_EXECUTABLE, args); }
 
+// A small valid native scene, 32x24: one red sphere under one directional light. `extra` is
+// spliced in as the first top-level keys (e.g. R"("output": "x.png",)").
+inline std::string small_json_scene(const std::string& extra = "") {
+  return "{ " + extra + R"(
+  "image": { "width": 32, "height": 24 },
+  "camera": { "eye": [0, 0, 5], "target": [0, 0, 0], "up": [0, 1, 0], "fovy": 45 },
+  "materials": { "red": { "diffuse": [0.8, 0.1, 0.1], "ambient": 0.1 } },
+  "lights": [ { "type": "directional", "direction": [1, 1, 1] } ],
+  "nodes": [ { "models": [ { "geometry": { "type": "sphere" }, "material": "red" } ] } ]
+})";
+}
+
 }  // namespace rt_test
