@@ -39,6 +39,19 @@ const char* const kBareGltf = R"({
   "scene": 0
 })";
 
+// A command line and a part of the one-line usage error it must give.
+struct UsageCase {
+  std::string args, message;
+};
+
+// Checks that `run` failed as a usage error: status 2, one line "rt: error: ..." containing `message`.
+void check_usage_error(const RtRun& run, const std::string& message) {
+  INFO("stderr: " << run.err);
+  CHECK(run.status == 2);
+  CHECK(line_count(run.err) == 1);
+  CHECK_THAT(run.err, Catch::StartsWith("rt: error: ") && Catch::Contains(message));
+}
+
 // The first bytes of a file.
 std::string magic(const fs::path& path, std::size_t n) { return rt_test::read_file(path).substr(0, n); }
 
@@ -109,10 +122,7 @@ TEST_CASE("cli: every bad flag value is a usage error (status 2) naming the flag
   TempDir dir;
   write_file(dir / "scene.json", small_json_scene());
   write_file(dir / "bare.gltf", kBareGltf);
-  struct Case {
-    std::string args, message;
-  };
-  const std::vector<Case> cases = {
+  const std::vector<UsageCase> cases = {
       {"scene.json --ray-offset fixed:-1", "--ray-offset: 'fixed:-1' is neither robust nor fixed:EPS"},
       {"scene.json --ray-offset fixed:abc", "--ray-offset: 'fixed:abc'"},
       {"scene.json --width abc", "--width: 'abc' is not a whole number"},
@@ -143,13 +153,9 @@ TEST_CASE("cli: every bad flag value is a usage error (status 2) naming the flag
       {"scene.json -o out.foo", "-o out.foo: unknown image format '.foo' (writable: .png .ppm .exr"},
       {"scene.json -o out", "-o out: output file has no extension"},
   };
-  for (const Case& c : cases) {
+  for (const UsageCase& c : cases) {
     DYNAMIC_SECTION("rt render " << c.args) {
-      const RtRun run = run_rt(dir, "render -q " + c.args);
-      INFO("stderr: " << run.err);
-      CHECK(run.status == 2);
-      CHECK(line_count(run.err) == 1);
-      CHECK_THAT(run.err, Catch::StartsWith("rt: error: ") && Catch::Contains(c.message));
+      check_usage_error(run_rt(dir, "render -q " + c.args), c.message);
       CHECK(dir.entries() == std::vector<std::string>{"bare.gltf", "scene.json"});
     }
   }
@@ -159,10 +165,7 @@ TEST_CASE("cli: every bad flag value is a usage error (status 2) naming the flag
 
 TEST_CASE("cli: a mistyped command or flag gets the nearest name suggested", "[cli]") {
   TempDir dir;
-  struct Case {
-    std::string args, message;
-  };
-  const std::vector<Case> cases = {
+  const std::vector<UsageCase> cases = {
       {"rendr x.json", "unknown command 'rendr' (did you mean 'render'?); the commands are render, view, merge and info"},
       {"ifno", "unknown command 'ifno' (did you mean 'info'?)"},
       {"frobnicate", "unknown command 'frobnicate'; the commands are"},
@@ -177,13 +180,9 @@ TEST_CASE("cli: a mistyped command or flag gets the nearest name suggested", "[c
       {"render -x", "unknown option -x for rt render (rt render --help lists the options)"},
       {"info a.json b.json", "unexpected argument 'b.json' for rt info"},
   };
-  for (const Case& c : cases) {
+  for (const UsageCase& c : cases) {
     DYNAMIC_SECTION("rt " << c.args) {
-      const RtRun run = run_rt(dir, c.args);
-      INFO("stderr: " << run.err);
-      CHECK(run.status == 2);
-      CHECK(line_count(run.err) == 1);
-      CHECK_THAT(run.err, Catch::StartsWith("rt: error: ") && Catch::Contains(c.message));
+      check_usage_error(run_rt(dir, c.args), c.message);
       CHECK(dir.entries().empty());
     }
   }

@@ -143,10 +143,14 @@ std::optional<std::string> output_before_loading(const RenderArgs& args, const s
   return args.region.given() ? region_output(name, args.region) : name;
 }
 
-std::string output_after_loading(const RenderArgs& args, const std::string& scene_path, const Scene& scene) {
+// The output when the scene's own name for it is `own` (its "output", else <scene stem>.png).
+std::string output_named(const RenderArgs& args, const std::string& scene_path, const std::string& own) {
   if (auto known = output_before_loading(args, scene_path)) return *known;
-  const std::string name = default_output(scene, scene_path);
-  return args.region.given() ? region_output(name, args.region) : name;
+  return args.region.given() ? region_output(own, args.region) : own;
+}
+
+std::string output_after_loading(const RenderArgs& args, const std::string& scene_path, const Scene& scene) {
+  return output_named(args, scene_path, default_output(scene, scene_path));
 }
 
 // What every scene of a batch renders with, the Embree device included.
@@ -203,14 +207,16 @@ void check_pixel_flags(const RenderArgs& args, const Scene& scene) {
                                  pixel[0], pixel[1], width, height, width, height));
 }
 
-// A format rt cannot write, named by -o or --screenshot, is a usage error naming the flag.
-void check_output_flag(const std::string& flag, const std::string& path) {
-  if (path.empty()) return;
+// check_output_path for an image about to be written; when `flag` (-o, --screenshot) named the
+// path, a format rt cannot write is a usage error naming the flag.
+void check_output(const std::string& path, const std::string& flag) {
+  if (flag.empty()) return check_output_path(path);
   try {
     check_image_format(path);
   } catch (const InputError& error) {
     throw UsageError(fmt::format("{} {}", flag, error.what()));
   }
+  check_parent_directory_writable(path);
 }
 
 enum class Outcome { rendered, skipped, cancelled };
@@ -241,8 +247,7 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
     if (extension != ".exr")
       throw UsageError(fmt::format("--tile writes an OpenEXR region file for rt merge; '{}' is not .exr", output));
   }
-  check_output_flag("-o", args.output);
-  check_output_path(output);  // fail before rendering, not after
+  check_output(output, args.output.empty() ? "" : "-o");  // fail before rendering, not after
   if (!args.stats_path.empty()) check_parent_directory_writable(args.stats_path);
   check_render_memory(scene, region);
   const double load_s = seconds_since(start);
@@ -366,9 +371,7 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
 // Where a batch scene's image will go, known before loading it: output_before_loading, else the
 // file's declared "output" (read without loading the scene), else <scene stem>.png.
 std::string planned_output(const RenderArgs& args, const std::string& scene_path) {
-  if (auto known = output_before_loading(args, scene_path)) return *known;
-  const std::string name = declared_output(scene_path).value_or(fs::path(scene_path).stem().string() + ".png");
-  return args.region.given() ? region_output(name, args.region) : name;
+  return output_named(args, scene_path, declared_output(scene_path).value_or(fs::path(scene_path).stem().string() + ".png"));
 }
 
 // Batch mistakes found before any rendering: -o, --stats or --debug-pixel with several scenes,
@@ -447,11 +450,9 @@ int run_view(const ViewArgs& args) {
   Scene scene = load_for_render(args.render, args.scene_path, report);
   ViewOptions options;
   options.save_path = args.render.output.empty() ? default_output(scene, args.scene_path) : args.render.output;
-  check_output_flag("-o", args.render.output);
-  check_output_path(options.save_path);
+  check_output(options.save_path, args.render.output.empty() ? "" : "-o");
   if (!args.screenshot.empty()) {
-    check_output_flag("--screenshot", args.screenshot);
-    check_output_path(args.screenshot);
+    check_output(args.screenshot, "--screenshot");
     if (writes_float(args.screenshot))
       throw InputError(args.screenshot, "", "a screenshot holds the window's 8-bit pixels; use .png, .ppm or .tif");
   }
@@ -524,13 +525,13 @@ int run_info(const std::string& scene_path, const GltfOptions& gltf, const Scene
   }
   const EffectsPlan plan = plan_effects(scene, flat, RayOffset{}, effects);
   const std::size_t emitters = plan.emitters.size();
-  fmt::print("area lights {} emitter{}, {} emissive triangles\n", emitters, emitters == 1 ? "" : "s",
-             plan.area_lights ? plan.area_lights->triangle_count : 0);
+  fmt::print("area lights {}, {}\n", count_of(emitters, "emitter"),
+             count_of(plan.area_lights ? plan.area_lights->triangle_count : 0, "emissive triangle"));
   for (std::size_t e = 0; e < emitters; ++e) {
     const Emitter& emitter = plan.area_lights->emitters[e];
     const Material& m = scene.materials[emitter.material];
-    fmt::print("  {:<16} {} triangle{}, area {:.6g}, radiance ({}, {}, {}){}, power ({:.6g}, {:.6g}, {:.6g}){}\n", m.name,
-               emitter.triangles.size(), emitter.triangles.size() == 1 ? "" : "s", emitter.area, m.emission.r,
+    fmt::print("  {:<16} {}, area {:.6g}, radiance ({}, {}, {}){}, power ({:.6g}, {:.6g}, {:.6g}){}\n", m.name,
+               count_of(emitter.triangles.size(), "triangle"), emitter.area, m.emission.r,
                m.emission.g, m.emission.b, m.emission_texture.empty() ? "" : " x texture " + m.emission_texture.path,
                emitter.power.r, emitter.power.g, emitter.power.b, emitter.planar ? ", planar" : "");
   }

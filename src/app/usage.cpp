@@ -46,7 +46,7 @@ std::vector<std::string> flag_names(const CLI::App& command) {
   return names;
 }
 
-std::string quoted_list(const std::vector<std::string>& names) {
+std::string spoken_list(const std::vector<std::string>& names) {
   std::string text;
   for (std::size_t i = 0; i < names.size(); ++i)
     text += (i == 0 ? "" : i + 1 == names.size() ? " and " : ", ") + names[i];
@@ -138,7 +138,7 @@ std::string usage_message(const CLI::App& app, const CLI::ParseError& error, int
   const std::vector<std::string> commands = command_names(app);
   const std::vector<CLI::App*> chosen = app.get_subcommands();
   if (chosen.empty()) {
-    const std::string what = fmt::format("the commands are {} (rt --help)", quoted_list(commands));
+    const std::string what = fmt::format("the commands are {} (rt --help)", spoken_list(commands));
     if (argc < 2) return "no command given: " + what;
     const std::string first = argv[1];
     if (!first.starts_with("-")) {

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <csetjmp>
 #include <filesystem>
+#include <iterator>
 #include <stdexcept>
 #include <system_error>
 
@@ -113,17 +114,19 @@ std::vector<unsigned char> encode_ppm(int width, int height, const std::vector<s
 void check_image_format(const std::string& path) {
   const std::string ext = lower_extension(path);
   const auto formats = [] {
-    // The common formats by name; the rest (.dpx, .fits, .sgi, ...) by count.
+    // The formats most asked for by name, the rest (.dpx, .fits, .sgi, ...) by count.
+    const std::vector<std::string> named = {".png", ".ppm", ".exr", ".hdr", ".tif", ".jpg", ".bmp", ".tga", ".webp", ".gif"};
     const std::vector<std::string> writable = oiio_module().writable_extensions();
-    std::vector<std::string> common;
-    for (const char* name : {".exr", ".hdr", ".tif", ".jpg", ".bmp", ".tga", ".webp", ".gif"})
-      if (std::find(writable.begin(), writable.end(), name) != writable.end()) common.push_back(name);
-    const std::size_t others = writable.size() - common.size() - std::count_if(writable.begin(), writable.end(),
-                                                                               [](const std::string& e) {
-                                                                                 return is_native_format(e);
-                                                                               });
-    return fmt::format("writable: .png .ppm {} and {} more extensions of OpenImageIO; float: .exr .hdr",
-                       fmt::join(common, " "), others);
+    const auto writes = [&](const std::string& e) {
+      return is_native_format(e) || std::find(writable.begin(), writable.end(), e) != writable.end();
+    };
+    std::vector<std::string> listed;
+    std::copy_if(named.begin(), named.end(), std::back_inserter(listed), writes);
+    const auto others = std::count_if(writable.begin(), writable.end(), [&](const std::string& e) {
+      return std::find(named.begin(), named.end(), e) == named.end();
+    });
+    return fmt::format("writable: {} and {} more extensions of OpenImageIO; float: .exr .hdr", fmt::join(listed, " "),
+                       others);
   };
   if (ext.empty())
     throw InputError(path, "", "output file has no extension to choose an image format by (" + formats() + ")");
