@@ -166,7 +166,8 @@ Camera SceneReader::read_camera(const json& value, const std::string& where) con
 
 Material SceneReader::read_material(const json& value, const std::string& where, const std::string& name) const {
   require_object(value, where);
-  check_keys(value, where, {"ambient", "diffuse", "specular", "emission", "shininess", "emitter"});
+  check_keys(value, where, {"ambient", "diffuse", "specular", "emission", "shininess", "emitter", "transmission", "ior",
+                            "thin", "attenuation_color", "attenuation_distance"});
   Material material;
   material.name = name;
   if (value.contains("ambient")) material.ambient = read_color(value["ambient"], child(where, "ambient"));
@@ -183,6 +184,33 @@ Material SceneReader::read_material(const json& value, const std::string& where,
     const double shininess = read_number(value["shininess"], child(where, "shininess"));
     if (shininess < 0) fail(child(where, "shininess"), "shininess must be >= 0");
     material.shininess = static_cast<float>(shininess);
+  }
+  // A dielectric (docs/json-scene-format.md): transmission, ior, thin, attenuation_*.
+  if (value.contains("transmission"))
+    material.transmission = read_color(value["transmission"], child(where, "transmission"));
+  const bool dielectric_key = value.contains("ior") || value.contains("thin") || value.contains("attenuation_color") ||
+                              value.contains("attenuation_distance");
+  if (dielectric_key && !material.is_dielectric())
+    fail(where, "ior, thin and attenuation_* describe glass: give a non-black \"transmission\" too");
+  if (value.contains("ior")) {
+    const double ior = read_number(value["ior"], child(where, "ior"));
+    if (!(ior >= 1.0 && ior <= 10.0)) fail(child(where, "ior"), fmt::format("ior {} is outside [1, 10]", ior));
+    material.ior = static_cast<float>(ior);
+  }
+  if (value.contains("thin")) {
+    if (!value["thin"].is_boolean())
+      fail(child(where, "thin"), fmt::format("expected true or false, got {}", type_name(value["thin"])));
+    material.thin_walled = value["thin"].get<bool>();
+  }
+  if (value.contains("attenuation_color")) {
+    material.attenuation_color = read_color(value["attenuation_color"], child(where, "attenuation_color"));
+    if (material.attenuation_color.r > 1 || material.attenuation_color.g > 1 || material.attenuation_color.b > 1)
+      fail(child(where, "attenuation_color"), "components must be <= 1 (the colour left after attenuation_distance)");
+  }
+  if (value.contains("attenuation_distance")) {
+    const double distance = read_number(value["attenuation_distance"], child(where, "attenuation_distance"));
+    if (!(distance > 0.0)) fail(child(where, "attenuation_distance"), "attenuation_distance must be > 0");
+    material.attenuation_distance = static_cast<float>(distance);
   }
   return material;
 }

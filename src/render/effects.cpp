@@ -147,11 +147,15 @@ EffectsPlan plan_effects(const Scene& scene, const FlatScene& flat, const RayOff
     mp.ambient = !is_black(m.ambient);
     mp.diffuse = !is_black(m.diffuse);
     mp.specular = !is_black(m.specular);
-    mp.reflection = !is_black(reflection_weight(m)) && scene.settings.max_depth > 0;
+    // A dielectric's reflection is weighted by its Fresnel reflectance, up to 1, and its refraction
+    // by up to `transmission` (add_dielectric_rays).
+    mp.reflection = (m.is_dielectric() || !is_black(reflection_weight(m))) && scene.settings.max_depth > 0;
+    mp.refraction = m.is_dielectric() && scene.settings.max_depth > 0;
     any_lit_term = any_lit_term || mp.ambient || mp.diffuse || mp.specular;
     any_diffuse_or_specular = any_diffuse_or_specular || mp.diffuse || mp.specular;
     any_reflection = any_reflection || mp.reflection;
-    largest_reflection = std::max(largest_reflection, max_channel(reflection_weight(m)));
+    largest_reflection = std::max(largest_reflection, m.is_dielectric() ? std::max(1.0, max_channel(m.transmission))
+                                                                        : max_channel(reflection_weight(m)));
     largest_emission = std::max(largest_emission, max_channel(m.emission));
     largest_lit_sum = std::max(largest_lit_sum, double(m.ambient.r) + m.diffuse.r + m.specular.r);
     largest_lit_sum = std::max(largest_lit_sum, double(m.ambient.g) + m.diffuse.g + m.specular.g);
@@ -240,6 +244,11 @@ std::vector<std::string> describe_plan(const EffectsPlan& plan, const Scene& sce
     lines.push_back(fmt::format("reflections on: {} of {} materials reflect, rays up to depth {}{}", reflective,
                                 plan.materials.size(), plan.useful_depth,
                                 plan.options.prune ? ", none where the weight is black" : ""));
+    std::size_t refractive = 0;
+    for (const MaterialPlan& m : plan.materials) refractive += m.refraction;
+    if (refractive > 0)
+      lines.push_back(fmt::format("refraction  on: {} of {} materials are glass (Fresnel-weighted reflection and "
+                                  "refraction)", refractive, plan.materials.size()));
   } else {
     lines.push_back(fmt::format("reflections off: {}", scene.settings.max_depth == 0 ? "max depth 0"
                                                                                        : "no material reflects"));

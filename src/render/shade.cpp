@@ -1,5 +1,7 @@
 #include "rt/render/shade.h"
 
+#include "rt/render/dielectric.h"
+
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -10,6 +12,7 @@
 
 #include <fmt/format.h>
 
+#include "rt/render/dielectric.h"
 #include "rt/render/sampling.h"
 
 namespace rt {
@@ -60,10 +63,12 @@ RayCounts& RayCounts::operator+=(const RayCounts& other) {
   camera += other.camera;
   shadow += other.shadow;
   reflection += other.reflection;
+  refraction += other.refraction;
   area_light += other.area_light;
   add_all(shadow_per_light, other.shadow_per_light);
   add_all(area_light_per_emitter, other.area_light_per_emitter);
   add_all(reflection_per_depth, other.reflection_per_depth);
+  add_all(refraction_per_depth, other.refraction_per_depth);
   add_all(hits_per_depth, other.hits_per_depth);
   for (int r = 0; r < kSkipRuleCount; ++r) skipped[r] += other.skipped[r];
   add_all(intersect_ticks_per_depth, other.intersect_ticks_per_depth);
@@ -84,13 +89,37 @@ std::uint64_t pixel_path_seed(int x, int y, int sample) {
   return mix64((std::uint64_t(std::uint32_t(y)) << 32 | std::uint32_t(x)) ^ mix64(std::uint64_t(std::uint32_t(sample)) + 1));
 }
 
-Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCounts& counts,
-                 const Vec3d& throughput, std::uint64_t path_seed) {
+namespace {
+
+Hit intersect_timed(const ShadingContext& context, const Ray& ray, int depth, RayCounts& counts) {
   const std::uint64_t intersect_start = context.time_queries ? __rdtsc() : 0;
   const Hit hit = context.accel.intersect(ray);
   if (context.time_queries) add_at(counts.intersect_ticks_per_depth, std::size_t(depth), __rdtsc() - intersect_start);
-  return shade_hit(context, ray, hit, depth, counts, throughput, path_seed);
+  return hit;
 }
+
+}  // namespace
+
+Color find_color(const ShadingContext& context, const Ray& ray, int depth, RayCounts& counts,
+                 const Vec3d& throughput, std::uint64_t path_seed) {
+  return shade_hit(context, ray, intersect_timed(context, ray, depth, counts), depth, counts, throughput, path_seed);
+}
+
+namespace {
+
+// find_color for a ray travelling inside `medium` (a dielectric's volume): what it brings back is
+// attenuated by Beer–Lambert over its length to the next surface (all of it on a miss).
+Vec3d find_color_inside(const ShadingContext& context, const Ray& ray, int depth, RayCounts& counts,
+                        const Vec3d& throughput, std::uint64_t path_seed, const Material& medium) {
+  const Hit hit = intersect_timed(context, ray, depth, counts);
+  const Vec3d radiance(shade_hit(context, ray, hit, depth, counts, throughput, path_seed));
+  if (!std::isfinite(medium.attenuation_distance)) return radiance;
+  // Ray directions are unit length, so t is the distance in scene units.
+  return radiance * beer_lambert_transmittance(Vec3d(medium.attenuation_color), medium.attenuation_distance,
+                                               hit.found() ? double(hit.t) : double(kInfinity));
+}
+
+}  // namespace
 
 namespace {
 
@@ -254,6 +283,48 @@ Vec3d emitted_radiance(const ShadingContext& context, const Material& material, 
   return Vec3d(material.emission);
 }
 
+// The secondary rays of a smooth dielectric (Material::is_dielectric): a mirror reflection
+// weighted by the Fresnel reflectance F and a refracted ray weighted by (1 - F) * transmission,
+// both one level deeper (docs/glass.md). The geometric normal decides whether the ray enters (it
+// arrives on the side the normal points to) or leaves; the shading normal, turned to the side the
+// ray arrives from, bends it. Under total internal reflection F = 1 and only the reflection is
+// traced. Rays inside a volume are attenuated by Beer–Lambert.
+template <class Shadows>
+void add_dielectric_rays(const ShadingContext& context, const SurfacePoint& surface, const Vec3d& normal,
+                         const Vec3d& direction, const Material& material, int depth, RayCounts& counts,
+                         const Vec3d& throughput, std::uint64_t path_seed, Shadows& shadows) {
+  const bool entering = glm::dot(direction, surface.geometric_normal) < 0.0;
+  const Vec3d facing = entering ? normal : -normal;  // shading normal on the side the ray comes from
+  const double ior = double(material.ior);
+  const double eta = entering ? ior : 1.0 / ior;  // n_transmitted / n_incident; outside is vacuum (1)
+  const double cos_incident = -glm::dot(direction, facing);
+  // A thin wall has no inside: the ray goes straight on, reflected by one interface's reflectance.
+  std::optional<Vec3d> transmitted = material.thin_walled ? std::optional<Vec3d>(direction)
+                                                          : refract_direction(direction, facing, eta);
+  const double reflectance = transmitted ? fresnel_dielectric(cos_incident, material.thin_walled ? ior : eta) : 1.0;
+  const bool volume = !material.thin_walled;
+  const Vec3d transmission = (1.0 - reflectance) * Vec3d(material.transmission);
+  if (transmission == Vec3d(0.0)) transmitted.reset();  // e.g. ior 1 is no interface; black: nothing
+
+  Vec3d radiance(0.0);
+  const auto trace = [&](const Vec3d& along, const Vec3d& weight, bool inside, bool refraction) {
+    Ray secondary;
+    secondary.origin = offset_ray_origin(context.ray_offset, surface, along);
+    secondary.direction = Vec3f(along);
+    ++(refraction ? counts.refraction : counts.reflection);
+    add_at(refraction ? counts.refraction_per_depth : counts.reflection_per_depth, std::size_t(depth) + 1);
+    if (context.trace)
+      note(context, depth, "  {}, weight {}{}:", refraction ? "refraction" : "reflection", format_vec(weight),
+           inside ? " (inside)" : "");
+    const Vec3d next_throughput = throughput * weight;
+    radiance += weight * (inside ? find_color_inside(context, secondary, depth + 1, counts, next_throughput, path_seed, material)
+                                 : Vec3d(find_color(context, secondary, depth + 1, counts, next_throughput, path_seed)));
+  };
+  if (reflectance > 0.0) trace(reflect_direction(direction, facing), Vec3d(reflectance), volume && !entering, false);
+  if (transmitted) trace(*transmitted, transmission, volume && entering, true);
+  shadows.add_reflection(radiance);
+}
+
 // shade_hit's work for a hit, with the shadow queries left to `shadows`.
 template <class Shadows>
 void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit, int depth, RayCounts& counts,
@@ -400,7 +471,9 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
     add_area_light_terms(context, LitSurface{surface, normal, to_eye, diffuse, specular, double(material.shininess), terms},
                          depth, path_seed, counts, shadows);
 
-  if (depth < context.scene.settings.max_depth) {
+  if (depth < context.scene.settings.max_depth && material.is_dielectric()) {
+    add_dielectric_rays(context, surface, normal, direction, material, depth, counts, throughput, path_seed, shadows);
+  } else if (depth < context.scene.settings.max_depth) {
     const Vec3d next_throughput = throughput * reflective;
     if (prune && !terms.reflection) {
       skip(SkipRule::black_reflection, -1);

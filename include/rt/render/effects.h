@@ -78,7 +78,8 @@ struct MaterialPlan {
   bool ambient = false;
   bool diffuse = false;
   bool specular = false;
-  bool reflection = false;  // its reflection weight (Material::reflective, else specular) is not black
+  bool reflection = false;  // its reflection weight (Material::reflective, else specular; glass: Fresnel) is not black
+  bool refraction = false;  // a dielectric (Material::is_dielectric): refracted rays are traced
 };
 
 // The plan for one scene and one set of options; built by plan_effects, read by find_color.

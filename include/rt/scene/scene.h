@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -53,8 +54,24 @@ struct Material {
   bool emits_light = false;
   Texture emission_texture;  // multiplies `emission` of an emitter at each point it is evaluated
 
+  // A smooth dielectric (glass, water) where `transmission` is not black (OBJ/MTL illum 4/6/7,
+  // glTF KHR_materials_transmission, native "transmission"; rt/render/dielectric.h). Its mirror
+  // reflection is then weighted by the Fresnel reflectance F of the interface instead of
+  // `reflective`/`specular`, and a refracted ray carries (1 - F) * transmission. The Phong terms of
+  // the lights (ambient, diffuse, highlight) are added as for any material.
+  Color transmission{0.0f};
+  float ior = 1.5f;  // index of refraction of the inside (the side the normals point away from); outside is 1
+  // Thin-walled (glTF transmission without KHR_materials_volume): a sheet with nothing inside, so
+  // the transmitted ray goes on undeflected.
+  bool thin_walled = false;
+  // Beer–Lambert absorption of light travelling inside (KHR_materials_volume): after
+  // attenuation_distance scene units its colour is multiplied by attenuation_color. Infinite: none.
+  Color attenuation_color{1.0f};
+  float attenuation_distance = std::numeric_limits<float>::infinity();
+
   // An area light: emits_light with a non-black emission (a black one lights nothing).
   bool is_emitter() const { return emits_light && emission != Color(0.0f); }
+  bool is_dielectric() const { return transmission != Color(0.0f); }
 };
 
 // A light in world space. position.w == 0: directional, (x, y, z) is the direction towards the
