@@ -118,3 +118,25 @@ TEST_CASE("Beer-Lambert: the attenuation colour after the attenuation distance, 
   CHECK(rt::beer_lambert_transmittance(color, INFINITY, 100.0) == Vec3d(1.0));
   CHECK(rt::beer_lambert_transmittance(Vec3d(0.0), 1.0, 0.5) == Vec3d(0.0));
 }
+
+TEST_CASE("thin sheet: the series of inner bounces sums to 2R / (1 + R), from either face", "[dielectric]") {
+  for (const double eta : {1.2, 1.5, 2.5}) {
+    for (const double cos_i : {1.0, 0.7, 0.3, 0.02}) {
+      const double r = rt::fresnel_dielectric(cos_i, eta);
+      // Light entering the sheet bounces between its faces; each exit through the front face adds
+      // T * R^(2k+1) * T. Summed term by term, not by the geometric-series formula.
+      double series = r, inside = (1.0 - r) * r;  // after entering (T) and one inner reflection (R)
+      for (int k = 0; k < 200; ++k) {
+        series += inside * (1.0 - r);
+        inside *= r * r;
+      }
+      const double thin = rt::fresnel_thin_dielectric(cos_i, eta);
+      CHECK(thin == Approx(series).epsilon(1e-12));
+      CHECK(thin == Approx(2.0 * r / (1.0 + r)).epsilon(1e-12));
+      CHECK(thin >= r);
+      CHECK(thin < 1.0);
+    }
+  }
+  CHECK(rt::fresnel_thin_dielectric(1.0, 1.0) == 0.0);  // no interface, nothing reflected
+  CHECK(rt::fresnel_thin_dielectric(0.0, 1.5) == 1.0);  // grazing
+}

@@ -143,9 +143,17 @@ Material to_material(const tinyobj::material_t& m, const fs::path& directory) {
   if (material.emits_light && !m.emissive_texname.empty())
     material.emission_texture.path = (directory / m.emissive_texname).lexically_normal().string();
   material.shininess = static_cast<float>(m.shininess);
-  // illum 3-7 all trace a mirror reflection weighted by Ks; the transparency and refraction of
-  // 4, 6 and 7 are not supported, so glass renders as an opaque mirror.
-  material.reflective = (m.illum >= 3 && m.illum <= 7) ? material.specular : Color(0.0f);
+  // illum 3 and 5 trace a mirror reflection weighted by Ks. illum 4, 6 and 7 are glass
+  // (docs/input-formats.md): a dielectric of index Ni whose transmitted light is filtered by Tf
+  // (clear when the file gives no Tf), its reflection weighted by the exact Fresnel reflectance
+  // in place of Ks; the Phong terms stay.
+  material.reflective = (m.illum == 3 || m.illum == 5) ? material.specular : Color(0.0f);
+  if (m.illum == 4 || m.illum == 6 || m.illum == 7) {
+    const Color filter = color_of(m.transmittance);
+    material.transmission = filter == Color(0.0f) ? Color(1.0f) : filter;
+    // Some exporters write Ni 0 for "unset": that reads as the usual glass, 1.5.
+    material.ior = m.ior > 0 ? static_cast<float>(m.ior) : 1.5f;
+  }
   return material;
 }
 

@@ -18,6 +18,12 @@ double fresnel_dielectric(double cos_theta_i, double eta) {
   return 0.5 * (r_parallel * r_parallel + r_perpendicular * r_perpendicular);
 }
 
+double fresnel_thin_dielectric(double cos_theta_i, double eta) {
+  const double r = fresnel_dielectric(cos_theta_i, eta);
+  // The sheet's outer index is the same on both faces, so its inner face never totally reflects.
+  return r < 1.0 ? r + (1.0 - r) * (1.0 - r) * r / (1.0 - r * r) : 1.0;
+}
+
 std::optional<Vec3d> refract_direction(const Vec3d& incident, const Vec3d& normal, double eta) {
   const double cos_theta_i = std::clamp(-glm::dot(incident, normal), 0.0, 1.0);
   const double sin2_theta_t = (1.0 - cos_theta_i * cos_theta_i) / (eta * eta);

@@ -1,7 +1,5 @@
 #include "rt/render/shade.h"
 
-#include "rt/render/dielectric.h"
-
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -118,10 +116,6 @@ Vec3d find_color_inside(const ShadingContext& context, const Ray& ray, int depth
   return radiance * beer_lambert_transmittance(Vec3d(medium.attenuation_color), medium.attenuation_distance,
                                                hit.found() ? double(hit.t) : double(kInfinity));
 }
-
-}  // namespace
-
-namespace {
 
 // "light 2" or "area light 0 sample 5" for the trace: light slots past the scene's lights are
 // emitters' samples.
@@ -298,10 +292,12 @@ void add_dielectric_rays(const ShadingContext& context, const SurfacePoint& surf
   const double ior = double(material.ior);
   const double eta = entering ? ior : 1.0 / ior;  // n_transmitted / n_incident; outside is vacuum (1)
   const double cos_incident = -glm::dot(direction, facing);
-  // A thin wall has no inside: the ray goes straight on, reflected by one interface's reflectance.
+  // A thin wall has no inside: the ray goes straight on, and both faces reflect.
   std::optional<Vec3d> transmitted = material.thin_walled ? std::optional<Vec3d>(direction)
                                                           : refract_direction(direction, facing, eta);
-  const double reflectance = transmitted ? fresnel_dielectric(cos_incident, material.thin_walled ? ior : eta) : 1.0;
+  const double reflectance = material.thin_walled ? fresnel_thin_dielectric(cos_incident, ior)
+                             : transmitted        ? fresnel_dielectric(cos_incident, eta)
+                                                  : 1.0;
   const bool volume = !material.thin_walled;
   const Vec3d transmission = (1.0 - reflectance) * Vec3d(material.transmission);
   if (transmission == Vec3d(0.0)) transmitted.reset();  // e.g. ior 1 is no interface; black: nothing

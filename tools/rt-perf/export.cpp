@@ -130,6 +130,12 @@ int run_export(const ExportArgs& args) {
     json["shininess"] = material.shininess;
     json["reflective"] = material.reflective ? to_json(*material.reflective) : Json(nullptr);
     json["emits_light"] = material.emits_light;
+    json["transmission"] = to_json(material.transmission);
+    json["ior"] = material.ior;
+    json["thin_walled"] = material.thin_walled;
+    json["attenuation_color"] = to_json(material.attenuation_color);
+    json["attenuation_distance"] =
+        std::isfinite(material.attenuation_distance) ? Json(material.attenuation_distance) : Json(nullptr);
     json["diffuse_texture"] = texture_json(material.diffuse_texture);
     json["emission_texture"] = texture_json(material.emission_texture);
     json["triangles"] = triangles_per_material[m];

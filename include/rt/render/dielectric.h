@@ -18,6 +18,12 @@ namespace rt {
 // ((eta - 1) / (eta + 1))^2.
 double fresnel_dielectric(double cos_theta_i, double eta);
 
+// Reflectance of a thin dielectric sheet (both faces, nothing bent): the single-interface
+// reflectance R plus the light bounced back and forth inside, R + T^2 R / (1 - R^2) with T = 1 - R
+// (pbrt-v4 ThinDielectricBxDF; Mitsuba 3's thindielectric), which is 2R / (1 + R). `eta` is the
+// sheet's index relative to the outside.
+double fresnel_thin_dielectric(double cos_theta_i, double eta);
+
 // The direction transmitted through the interface by Snell's law (n_i sin theta_i = n_t sin
 // theta_t). `incident` travels towards the surface; `normal` faces the side it comes from
 // (dot(incident, normal) <= 0); `eta` = n_transmitted / n_incident. Unit length; nullopt under
