@@ -364,6 +364,64 @@ TEST_CASE("gltf: bad files give one line naming the file, the JSON path and the 
   SECTION("no such file") { CHECK_THAT(load_error(dir / "nothere.gltf"), Contains("no such file")); }
 }
 
+TEST_CASE("gltf: KHR_materials_transmission, _ior and _volume make glass, thin without a volume", "[gltf][glass]") {
+  rt_test::TempDir dir;
+  GltfBuilder builder;
+  builder.doc["materials"] = json::array();
+  const auto add_material = [&](json extensions) {
+    builder.doc["materials"].push_back({{"pbrMetallicRoughness", {{"baseColorFactor", {0.9, 0.8, 0.7, 1.0}},
+                                                                   {"metallicFactor", 0.0}, {"roughnessFactor", 0.0}}},
+                                        {"extensions", std::move(extensions)}});
+    json primitive = {{"attributes", {{"POSITION", builder.vec3s({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}})}}},
+                      {"material", builder.doc["materials"].size() - 1}};
+    builder.node({{"mesh", builder.mesh(primitive)}});
+  };
+  add_material({{"KHR_materials_transmission", {{"transmissionFactor", 0.75}}}});
+  add_material({{"KHR_materials_transmission", {{"transmissionFactor", 1.0}}},
+                {"KHR_materials_ior", {{"ior", 1.33}}},
+                {"KHR_materials_volume", {{"thicknessFactor", 0.1}, {"attenuationDistance", 2.5},
+                                          {"attenuationColor", {0.5, 0.6, 0.7}}}}});
+  add_material({{"KHR_materials_ior", {{"ior", 2.0}}}});  // opaque: only the reflectance changes
+  const std::string path = builder.write(dir, "glass");
+  const rt::Scene scene = load(path);
+  const auto material = [&](const std::string& name) -> const rt::Material& {
+    for (const rt::Material& m : scene.materials)
+      if (m.name == name) return m;
+    FAIL("no material " << name);
+    throw;
+  };
+  const rt::Material& thin = material("material 0");
+  CHECK(thin.is_dielectric());
+  CHECK(thin.transmission_mix);
+  CHECK(thin.transmission_factor == 0.75f);
+  CHECK(thin.transmission == rt::Color(0.9f, 0.8f, 0.7f));  // tinted by the base colour
+  CHECK(thin.thin_walled);
+  CHECK(thin.ior == 1.5f);
+  const rt::Material& volume = material("material 1");
+  CHECK_FALSE(volume.thin_walled);
+  CHECK(volume.ior == 1.33f);
+  CHECK(volume.attenuation_distance == 2.5f);
+  CHECK(volume.attenuation_color == rt::Color(0.5f, 0.6f, 0.7f));
+  const rt::Material& opaque = material("material 2");
+  CHECK_FALSE(opaque.is_dielectric());
+  CHECK(opaque.specular.r == Approx(1.0 / 9.0));  // ((2 - 1) / (2 + 1))^2 at roughness 0
+
+  SECTION("out-of-range values are errors naming the JSON path") {
+    builder.doc["materials"][0]["extensions"]["KHR_materials_transmission"]["transmissionFactor"] = 1.5;
+    const std::string bad = builder.write(dir, "bad");
+    CHECK_THAT(load_error(bad), Contains(bad + ":/materials/0/extensions/KHR_materials_transmission/transmissionFactor"));
+    builder.doc["materials"][0]["extensions"]["KHR_materials_transmission"]["transmissionFactor"] = 0.5;
+    builder.doc["materials"][1]["extensions"]["KHR_materials_ior"]["ior"] = 0.5;
+    CHECK_THAT(load_error(builder.write(dir, "bad")), Contains("/materials/1/extensions/KHR_materials_ior/ior: ior 0.5"));
+    builder.doc["materials"][1]["extensions"]["KHR_materials_ior"]["ior"] = "glass";
+    CHECK_THAT(load_error(builder.write(dir, "bad")), Contains("KHR_materials_ior/ior: expected a finite number"));
+  }
+  SECTION("the extensions may be required") {
+    builder.doc["extensionsRequired"] = {"KHR_materials_transmission", "KHR_materials_ior", "KHR_materials_volume"};
+    CHECK(load_error(builder.write(dir, "required")).empty());
+  }
+}
+
 TEST_CASE("gltf: a missing texture falls back to the base colour with a notice", "[gltf]") {
   rt_test::TempDir dir;
   GltfBuilder builder;

@@ -347,6 +347,7 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
     stats["rays"] = {{"camera", result.rays.camera},
                      {"shadow", result.rays.shadow},
                      {"reflection", result.rays.reflection},
+                     {"refraction", result.rays.refraction},
                      {"area_light", result.rays.area_light},
                      {"total", result.rays.total()}};
     stats["effects"] = effects_json(result.plan, scene);
@@ -482,6 +483,25 @@ int run_merge(const std::vector<std::string>& paths, const std::string& output, 
   return 0;
 }
 
+namespace {
+
+// ", glass ior 1.5, transmission (1, 1, 1), thin" for `rt info`; empty for an opaque material.
+std::string glass_text(const Material& m) {
+  if (!m.is_dielectric()) return "";
+  std::string text = fmt::format(", glass ior {}, transmission ({}, {}, {})", m.ior, m.transmission.r, m.transmission.g,
+                                 m.transmission.b);
+  if (m.transmission_mix)
+    text += fmt::format(" x base colour, covering {}{}", m.transmission_factor,
+                        m.transmission_texture.empty() ? "" : " x texture " + m.transmission_texture.path);
+  if (m.thin_walled) text += ", thin-walled (no bending)";
+  if (std::isfinite(m.attenuation_distance))
+    text += fmt::format(", absorbing to ({}, {}, {}) over {}", m.attenuation_color.r, m.attenuation_color.g,
+                        m.attenuation_color.b, m.attenuation_distance);
+  return text;
+}
+
+}  // namespace
+
 int run_info(const std::string& scene_path, const GltfOptions& gltf, const SceneOptions& scene_options,
              const EffectsOptions& effects, bool quiet) {
   LoadReport report;
@@ -507,9 +527,9 @@ int run_info(const std::string& scene_path, const GltfOptions& gltf, const Scene
                bounds.lo.z, bounds.hi.x, bounds.hi.y, bounds.hi.z);
   fmt::print("materials   {}\n", scene.materials.size());
   for (const Material& m : scene.materials)
-    fmt::print("  {:<16} diffuse ({}, {}, {}), specular ({}, {}, {}), shininess {}{}\n", m.name, m.diffuse.r,
+    fmt::print("  {:<16} diffuse ({}, {}, {}), specular ({}, {}, {}), shininess {}{}{}\n", m.name, m.diffuse.r,
                m.diffuse.g, m.diffuse.b, m.specular.r, m.specular.g, m.specular.b, m.shininess,
-               m.diffuse_texture.empty() ? "" : ", texture " + m.diffuse_texture.path);
+               m.diffuse_texture.empty() ? "" : ", texture " + m.diffuse_texture.path, glass_text(m));
   fmt::print("lights      {}\n", scene.lights.size());
   for (const Light& l : scene.lights) {
     if (l.is_directional())

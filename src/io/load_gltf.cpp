@@ -101,6 +101,19 @@ class GltfReader {
   const std::vector<Model>& models_of_mesh(int mesh);
   std::uint32_t material_index(int material);
   Material read_material(int index);
+  void read_transmission(const tinygltf::Material& source, const std::string& at, const Vec3d& base, double metallic,
+                         double ior, Material& material);
+  // Material `source`'s extension `extension`'s member `key`, or null when absent; numbers are
+  // checked to be finite numbers (`at` is the material's JSON path).
+  const tinygltf::Value* extension_value(const tinygltf::Material& source, const std::string& at,
+                                         const std::string& extension, const std::string& key, bool number = true) const {
+    const auto it = source.extensions.find(extension);
+    if (it == source.extensions.end() || !it->second.Has(key)) return nullptr;
+    const tinygltf::Value& value = it->second.Get(key);
+    if (number && !(value.IsNumber() && std::isfinite(value.GetNumberAsDouble())))
+      fail(child(child(child(at, "extensions"), extension), key), "expected a finite number");
+    return &value;
+  }
   Texture read_texture(const tinygltf::TextureInfo& info, const std::string& where);
   Mat4d read_transform(const tinygltf::Node& node, const std::string& where) const;
   std::vector<int> scene_roots();
@@ -409,6 +422,59 @@ Texture GltfReader::read_texture(const tinygltf::TextureInfo& info, const std::s
   return readable->second ? result : Texture{};
 }
 
+// KHR_materials_transmission (+ KHR_materials_volume): the glass share of a material whose
+// opaque part read_material has set up (docs/glass.md). Metals transmit nothing (the spec weights
+// transmission by 1 - metallic). A volume of thickness 0, or none, is the spec's thin wall.
+void GltfReader::read_transmission(const tinygltf::Material& source, const std::string& at, const Vec3d& base,
+                                   double metallic, double ior, Material& material) {
+  const std::string transmission_at = child(at, "extensions/KHR_materials_transmission");
+  double factor = 0.0;
+  if (const tinygltf::Value* value = extension_value(source, at, "KHR_materials_transmission", "transmissionFactor")) {
+    factor = value->GetNumberAsDouble();
+    if (!(factor >= 0.0 && factor <= 1.0))
+      fail(child(transmission_at, "transmissionFactor"), fmt::format("{} is outside [0, 1]", factor));
+  }
+  factor *= 1.0 - metallic;
+  if (!(factor > 0.0) || base == Vec3d(0.0)) return;
+  material.transmission = Color(base);
+  material.transmission_factor = static_cast<float>(factor);
+  material.transmission_mix = true;
+  material.ior = static_cast<float>(ior);
+  const tinygltf::Value& extension = source.extensions.at("KHR_materials_transmission");
+  if (extension.Has("transmissionTexture")) {
+    tinygltf::TextureInfo info;
+    const tinygltf::Value& texture = extension.Get("transmissionTexture");
+    if (!texture.Get("index").IsInt()) fail(child(transmission_at, "transmissionTexture/index"), "expected an integer");
+    info.index = texture.Get("index").GetNumberAsInt();
+    if (texture.Has("texCoord")) info.texCoord = texture.Get("texCoord").GetNumberAsInt();
+    material.transmission_texture = read_texture(info, child(transmission_at, "transmissionTexture"));
+  }
+
+  material.thin_walled = true;
+  const std::string volume_at = child(at, "extensions/KHR_materials_volume");
+  if (const tinygltf::Value* value = extension_value(source, at, "KHR_materials_volume", "thicknessFactor")) {
+    if (!(value->GetNumberAsDouble() >= 0.0)) fail(child(volume_at, "thicknessFactor"), "must be >= 0");
+    material.thin_walled = !(value->GetNumberAsDouble() > 0.0);
+  }
+  if (material.thin_walled) return;
+  if (const tinygltf::Value* value = extension_value(source, at, "KHR_materials_volume", "attenuationDistance")) {
+    const double distance = value->GetNumberAsDouble();
+    if (!(distance > 0.0)) fail(child(volume_at, "attenuationDistance"), "must be > 0");
+    material.attenuation_distance = static_cast<float>(distance);
+  }
+  if (const tinygltf::Value* value = extension_value(source, at, "KHR_materials_volume", "attenuationColor", false)) {
+    Vec3d color(1.0);
+    if (!value->IsArray() || value->ArrayLen() != 3) fail(child(volume_at, "attenuationColor"), "expected 3 numbers");
+    for (int c = 0; c < 3; ++c) {
+      if (!value->Get(c).IsNumber()) fail(child(volume_at, "attenuationColor"), "expected 3 numbers");
+      color[c] = value->Get(c).GetNumberAsDouble();
+      if (!(color[c] >= 0.0 && color[c] <= 1.0))
+        fail(child(volume_at, "attenuationColor"), "components must be in [0, 1]");
+    }
+    material.attenuation_color = Color(color);
+  }
+}
+
 // pbrMetallicRoughness -> Blinn-Phong; the mapping and its reasons are in docs/input-formats.md.
 Material GltfReader::read_material(int index) {
   Material material;
@@ -447,12 +513,25 @@ Material GltfReader::read_material(int index) {
   if (source.occlusionTexture.index >= 0) count("occlusion maps ignored");
   if (source.alphaMode == "BLEND" || source.alphaMode == "MASK") count("alpha modes BLEND and MASK rendered opaque");
 
-  const Vec3d f0 = glm::mix(Vec3d(0.04), specular_base, metallic);
+  // KHR_materials_ior: the dielectric's index, which also sets its normal-incidence reflectance
+  // ((n - 1) / (n + 1))^2 (0.04 at the default 1.5).
+  double ior = 1.5;
+  if (const tinygltf::Value* value = extension_value(source, at, "KHR_materials_ior", "ior")) {
+    ior = value->GetNumberAsDouble();
+    if (!(ior >= 1.0 && ior <= 10.0))
+      fail(child(at, "extensions/KHR_materials_ior/ior"), fmt::format("ior {} is outside [1, 10]", ior));
+  }
+  const double dielectric_f0 = ((ior - 1.0) / (ior + 1.0)) * ((ior - 1.0) / (ior + 1.0));
+  const Vec3d f0 = glm::mix(Vec3d(dielectric_f0), specular_base, metallic);
   const double alpha = roughness * roughness;
   material.diffuse = Color(base * (1.0 - metallic + metallic * roughness));
   material.specular = Color(f0 * (1.0 - metallic * roughness));
   material.shininess = static_cast<float>(std::clamp(2.0 / std::max(alpha * alpha, 1e-8) - 2.0, 1.0, 1e4));
   material.reflective = Color(f0 * std::max(0.0, 1.0 - roughness / kMirrorRoughness));
+
+  // A metallic-roughness texture stands in by its mean, which would dim the glass everywhere;
+  // there the transmission texture alone says where the glass is.
+  read_transmission(source, at, base, pbr.metallicRoughnessTexture.index >= 0 ? 0.0 : metallic, ior, material);
 
   if (source.emissiveFactor.size() != 3) fail(child(at, "emissiveFactor"), "expected 3 numbers");
   Vec3d emission(source.emissiveFactor[0], source.emissiveFactor[1], source.emissiveFactor[2]);
@@ -670,7 +749,8 @@ Scene GltfReader::read() {
   for (std::size_t i = 0; i < gltf_.extensionsRequired.size(); ++i) {
     const std::string& name = gltf_.extensionsRequired[i];
     if (name != "KHR_lights_punctual" && name != "KHR_materials_emissive_strength" && name != "KHR_texture_transform" &&
-        name != "KHR_mesh_quantization")
+        name != "KHR_mesh_quantization" && name != "KHR_materials_transmission" && name != "KHR_materials_ior" &&
+        name != "KHR_materials_volume")
       fail(child("/extensionsRequired", i), fmt::format("required extension {} is not supported", name));
   }
 

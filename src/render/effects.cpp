@@ -52,6 +52,7 @@ std::string to_string(SkipRule rule) {
     case SkipRule::convex_facing: return "convex_facing";
     case SkipRule::light_on_surface: return "light_on_surface";
     case SkipRule::black_reflection: return "black_reflection";
+    case SkipRule::black_refraction: return "black_refraction";
     case SkipRule::dim_light: return "dim_light";
     case SkipRule::low_throughput: return "low_throughput";
     case SkipRule::emitter_off: return "emitter_off";
@@ -154,8 +155,8 @@ EffectsPlan plan_effects(const Scene& scene, const FlatScene& flat, const RayOff
     any_lit_term = any_lit_term || mp.ambient || mp.diffuse || mp.specular;
     any_diffuse_or_specular = any_diffuse_or_specular || mp.diffuse || mp.specular;
     any_reflection = any_reflection || mp.reflection;
-    largest_reflection = std::max(largest_reflection, m.is_dielectric() ? std::max(1.0, max_channel(m.transmission))
-                                                                        : max_channel(reflection_weight(m)));
+    largest_reflection = std::max(largest_reflection, max_channel(reflection_weight(m)));
+    if (m.is_dielectric()) largest_reflection = std::max({largest_reflection, 1.0, max_channel(m.transmission)});
     largest_emission = std::max(largest_emission, max_channel(m.emission));
     largest_lit_sum = std::max(largest_lit_sum, double(m.ambient.r) + m.diffuse.r + m.specular.r);
     largest_lit_sum = std::max(largest_lit_sum, double(m.ambient.g) + m.diffuse.g + m.specular.g);

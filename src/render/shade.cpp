@@ -277,33 +277,59 @@ Vec3d emitted_radiance(const ShadingContext& context, const Material& material, 
   return Vec3d(material.emission);
 }
 
-// The secondary rays of a smooth dielectric (Material::is_dielectric): a mirror reflection
-// weighted by the Fresnel reflectance F and a refracted ray weighted by (1 - F) * transmission,
-// both one level deeper (docs/glass.md). The geometric normal decides whether the ray enters (it
-// arrives on the side the normal points to) or leaves; the shading normal, turned to the side the
-// ray arrives from, bends it. Under total internal reflection F = 1 and only the reflection is
-// traced. Rays inside a volume are attenuated by Beer–Lambert.
-template <class Shadows>
+// What a point of a dielectric material refracts (Material::is_dielectric): the share of the
+// point that is glass (1 unless Material::transmission_mix) and the tint of transmitted light.
+struct GlassAtPoint {
+  double share = 0.0;
+  Vec3d tint{0.0};
+};
+
+GlassAtPoint glass_at(const ShadingContext& context, std::uint32_t material_id, const Material& material,
+                      const std::optional<Vec2f>& texcoord, const Vec3d& texel) {
+  if (!material.transmission_mix) return {1.0, Vec3d(material.transmission)};
+  double share = material.transmission_factor;
+  if (texcoord && context.textures && context.textures->has_transmission(material_id))
+    share *= context.textures->transmission(material_id, *texcoord);
+  return {std::clamp(share, 0.0, 1.0), Vec3d(material.transmission) * texel};
+}
+
+// The secondary rays of a smooth dielectric: a mirror reflection weighted by the Fresnel
+// reflectance F and a refracted ray weighted by (1 - F) x tint, both one level deeper
+// (docs/glass.md); on glTF's mix, glass.share of each and the opaque rest's mirror reflection.
+// The geometric normal decides whether the ray enters (it arrives on the side the normal points
+// to) or leaves; the shading normal, turned to the side the ray arrives from, bends it. Under
+// total internal reflection F = 1 and only the reflection is traced. Rays inside a volume are
+// attenuated by Beer–Lambert. `skip(rule)` counts a ray not traced.
+template <class Shadows, class Skip>
 void add_dielectric_rays(const ShadingContext& context, const SurfacePoint& surface, const Vec3d& normal,
-                         const Vec3d& direction, const Material& material, int depth, RayCounts& counts,
-                         const Vec3d& throughput, std::uint64_t path_seed, Shadows& shadows) {
+                         const Vec3d& direction, const Material& material, const GlassAtPoint& glass,
+                         const Vec3d& reflective, int depth, RayCounts& counts, const Vec3d& throughput,
+                         std::uint64_t path_seed, Shadows& shadows, const Skip& skip) {
   const bool entering = glm::dot(direction, surface.geometric_normal) < 0.0;
   const Vec3d facing = entering ? normal : -normal;  // shading normal on the side the ray comes from
   const double ior = double(material.ior);
   const double eta = entering ? ior : 1.0 / ior;  // n_transmitted / n_incident; outside is vacuum (1)
   const double cos_incident = -glm::dot(direction, facing);
   // A thin wall has no inside: the ray goes straight on, and both faces reflect.
-  std::optional<Vec3d> transmitted = material.thin_walled ? std::optional<Vec3d>(direction)
-                                                          : refract_direction(direction, facing, eta);
+  const std::optional<Vec3d> transmitted = material.thin_walled ? std::optional<Vec3d>(direction)
+                                                                : refract_direction(direction, facing, eta);
   const double reflectance = material.thin_walled ? fresnel_thin_dielectric(cos_incident, ior)
                              : transmitted        ? fresnel_dielectric(cos_incident, eta)
                                                   : 1.0;
   const bool volume = !material.thin_walled;
-  const Vec3d transmission = (1.0 - reflectance) * Vec3d(material.transmission);
-  if (transmission == Vec3d(0.0)) transmitted.reset();  // e.g. ior 1 is no interface; black: nothing
+  const Vec3d reflection_weight = material.transmission_mix
+                                      ? glass.share * reflectance + (1.0 - glass.share) * reflective
+                                      : Vec3d(reflectance);
+  const Vec3d refraction_weight = glass.share * (1.0 - reflectance) * glass.tint;  // black under TIR (F = 1)
 
+  const EffectsOptions& options = context.plan.options;
   Vec3d radiance(0.0);
   const auto trace = [&](const Vec3d& along, const Vec3d& weight, bool inside, bool refraction) {
+    const Vec3d next_throughput = throughput * weight;
+    if (options.prune && weight == Vec3d(0.0))
+      return skip(refraction ? SkipRule::black_refraction : SkipRule::black_reflection);
+    if (options.min_throughput > 0.0 && max_channel(next_throughput) < options.min_throughput)
+      return skip(SkipRule::low_throughput);
     Ray secondary;
     secondary.origin = offset_ray_origin(context.ray_offset, surface, along);
     secondary.direction = Vec3f(along);
@@ -312,12 +338,11 @@ void add_dielectric_rays(const ShadingContext& context, const SurfacePoint& surf
     if (context.trace)
       note(context, depth, "  {}, weight {}{}:", refraction ? "refraction" : "reflection", format_vec(weight),
            inside ? " (inside)" : "");
-    const Vec3d next_throughput = throughput * weight;
     radiance += weight * (inside ? find_color_inside(context, secondary, depth + 1, counts, next_throughput, path_seed, material)
                                  : Vec3d(find_color(context, secondary, depth + 1, counts, next_throughput, path_seed)));
   };
-  if (reflectance > 0.0) trace(reflect_direction(direction, facing), Vec3d(reflectance), volume && !entering, false);
-  if (transmitted) trace(*transmitted, transmission, volume && entering, true);
+  trace(reflect_direction(direction, facing), reflection_weight, volume && !entering, false);
+  if (transmitted) trace(*transmitted, refraction_weight, volume && entering, true);
   shadows.add_reflection(radiance);
 }
 
@@ -358,7 +383,15 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
   const Vec3d texel = texcoord && context.textures && context.textures->has_diffuse(material_id)
                           ? Vec3d(context.textures->diffuse(material_id, *texcoord))
                           : Vec3d(1.0);
-  const Vec3d ambient = Vec3d(material.ambient) * texel, diffuse = Vec3d(material.diffuse) * texel;
+  Vec3d ambient = Vec3d(material.ambient) * texel, diffuse = Vec3d(material.diffuse) * texel;
+  GlassAtPoint glass;
+  if (material.is_dielectric()) {
+    glass = glass_at(context, material_id, material, texcoord, texel);
+    if (material.transmission_mix) {  // the opaque material covers the rest
+      ambient *= 1.0 - glass.share;
+      diffuse *= 1.0 - glass.share;
+    }
+  }
   const Vec3d specular(material.specular);
   const Vec3d reflective(material.reflective.value_or(material.specular));
 
@@ -467,8 +500,9 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
     add_area_light_terms(context, LitSurface{surface, normal, to_eye, diffuse, specular, double(material.shininess), terms},
                          depth, path_seed, counts, shadows);
 
-  if (depth < context.scene.settings.max_depth && material.is_dielectric()) {
-    add_dielectric_rays(context, surface, normal, direction, material, depth, counts, throughput, path_seed, shadows);
+  if (depth < context.scene.settings.max_depth && glass.share > 0.0) {
+    add_dielectric_rays(context, surface, normal, direction, material, glass, reflective, depth, counts, throughput,
+                        path_seed, shadows, [&](SkipRule rule) { skip(rule, -1); });
   } else if (depth < context.scene.settings.max_depth) {
     const Vec3d next_throughput = throughput * reflective;
     if (prune && !terms.reflection) {

@@ -26,6 +26,7 @@ struct TextureSampler::Impl {
   std::unique_ptr<TextureFiles> files;  // null until a material has a texture
   std::vector<int> diffuse_slots;       // per material: the slot in `files`, -1 for none
   std::vector<int> emission_slots;
+  std::vector<int> transmission_slots;
   fs::path temp_dir;                    // empty unless an embedded image needed a file
 
   ~Impl() {
@@ -51,6 +52,7 @@ struct TextureSampler::Impl {
 TextureSampler::TextureSampler(const Scene& scene) : impl_(std::make_unique<Impl>()) {
   impl_->diffuse_slots.assign(scene.materials.size(), -1);
   impl_->emission_slots.assign(scene.materials.size(), -1);
+  impl_->transmission_slots.assign(scene.materials.size(), -1);
   std::map<const std::string*, std::string> written;
   const auto open = [&](const Texture& texture, int& slot) {
     if (texture.empty()) return;
@@ -61,6 +63,8 @@ TextureSampler::TextureSampler(const Scene& scene) : impl_(std::make_unique<Impl
   for (std::size_t i = 0; i < scene.materials.size(); ++i) {
     open(scene.materials[i].diffuse_texture, impl_->diffuse_slots[i]);
     if (scene.materials[i].emits_light) open(scene.materials[i].emission_texture, impl_->emission_slots[i]);
+    if (scene.materials[i].is_dielectric() && scene.materials[i].transmission_mix)
+      open(scene.materials[i].transmission_texture, impl_->transmission_slots[i]);
   }
 }
 
@@ -94,6 +98,16 @@ bool TextureSampler::has_emission(std::uint32_t material) const { return has_slo
 Color TextureSampler::emission(std::uint32_t material, Vec2f uv) const {
   if (!has_emission(material)) return Color(1.0f);
   return sample_srgb(*impl_->files, impl_->emission_slots[material], uv);
+}
+
+bool TextureSampler::has_transmission(std::uint32_t material) const {
+  return has_slot(impl_->transmission_slots, material);
+}
+
+float TextureSampler::transmission(std::uint32_t material, Vec2f uv) const {
+  float rgb[3] = {1.0f, 1.0f, 1.0f};
+  if (!has_transmission(material) || !impl_->files->sample(impl_->transmission_slots[material], uv, rgb)) return 1.0f;
+  return rgb[0];
 }
 
 bool texture_is_readable(const Texture& texture, std::string& reason) {

@@ -45,6 +45,7 @@ enum class SkipRule : int {
   convex_facing,      // exact: the scene is one convex object and the surface faces the light
   light_on_surface,   // always: the light is closer than the offset margin (nothing in between)
   black_reflection,   // exact: the reflection weight is black
+  black_refraction,   // exact: a dielectric's refraction weight is black here (e.g. an opaque texel of glTF glass)
   dim_light,          // approximation: the light's term is below min_light_contribution
   low_throughput,     // approximation: the path's throughput is below min_throughput
   // Area-light samples (one count per sample, so an emitter skipped at a hit counts light_samples):

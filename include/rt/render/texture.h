@@ -16,7 +16,8 @@ namespace rt {
 // Whitted renderer traces one ray per pixel, so there is no footprint to filter over.
 class TextureSampler {
  public:
-  // Opens every material's diffuse_texture, and emitters' emission_texture. Embedded (encoded) images are written to a private
+  // Opens every material's diffuse_texture, emitters' emission_texture and glTF glass's
+  // transmission_texture. Embedded (encoded) images are written to a private
   // temporary directory, removed again by the destructor. A texture that cannot be read samples
   // as white (loaders check readability and report it; see load_gltf.h).
   explicit TextureSampler(const Scene& scene);
@@ -35,6 +36,11 @@ class TextureSampler {
   // The same for the emission texture of emitter material `material` (Material::emits_light).
   bool has_emission(std::uint32_t material) const;
   Color emission(std::uint32_t material, Vec2f uv) const;
+
+  // The red channel of material `material`'s transmission texture (Material::transmission_mix),
+  // linear, at `uv`; 1 without one or when the lookup fails.
+  bool has_transmission(std::uint32_t material) const;
+  float transmission(std::uint32_t material, Vec2f uv) const;
 
  private:
   struct Impl;  // keeps OpenImageIO out of this header

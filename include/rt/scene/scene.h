@@ -55,11 +55,18 @@ struct Material {
   Texture emission_texture;  // multiplies `emission` of an emitter at each point it is evaluated
 
   // A smooth dielectric (glass, water) where `transmission` is not black (OBJ/MTL illum 4/6/7,
-  // glTF KHR_materials_transmission, native "transmission"; rt/render/dielectric.h). Its mirror
-  // reflection is then weighted by the Fresnel reflectance F of the interface instead of
+  // glTF KHR_materials_transmission, native "transmission"; rt/render/dielectric.h, docs/glass.md).
+  // Its mirror reflection is then weighted by the Fresnel reflectance F of the interface instead of
   // `reflective`/`specular`, and a refracted ray carries (1 - F) * transmission. The Phong terms of
   // the lights (ambient, diffuse, highlight) are added as for any material.
   Color transmission{0.0f};
+  // glTF's mix (KHR_materials_transmission): at each point a share c = transmission_factor x the
+  // red channel of transmission_texture is glass, tinted by the base colour (`transmission` x the
+  // diffuse texture), the rest the opaque material: diffuse and ambient are weighted by 1 - c, the
+  // mirror reflection is (1 - c) reflective + c F. Off (native and MTL glass): c = 1 everywhere.
+  bool transmission_mix = false;
+  float transmission_factor = 1.0f;
+  Texture transmission_texture;  // linear (not sRGB); read only when transmission_mix
   float ior = 1.5f;  // index of refraction of the inside (the side the normals point away from); outside is 1
   // Thin-walled (glTF transmission without KHR_materials_volume): a sheet with nothing inside, so
   // the transmitted ray goes on undeflected.
