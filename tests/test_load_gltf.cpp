@@ -21,6 +21,7 @@
 #include "rt/flatten/flatten.h"
 #include "rt/io/load_gltf.h"
 #include "rt/io/load_scene.h"
+#include "rt/render/alpha.h"
 #include "rt/render/render.h"
 #include "test_util.h"
 
@@ -437,6 +438,125 @@ TEST_CASE("gltf: a missing texture falls back to the base colour with a notice",
   REQUIRE(scene.materials.size() == 1);
   CHECK(scene.materials[0].diffuse_texture.empty());
   CHECK(scene.materials[0].diffuse.r == Approx(0.5f));  // base (1 - metallic + metallic roughness), both 1 by default
+}
+
+// A 4x4 RGBA PNG (made with Python's zlib), grey (200, 200, 200) with alpha per texel, row 0 at
+// the top: the values straddle the default cutoff 0.5 (127 and 128 of 255) and include 0 and 255.
+const std::uint8_t kMaskAlpha[4][4] = {{255, 255, 64, 127}, {255, 255, 0, 127}, {191, 64, 0, 128}, {128, 0, 0, 64}};
+const unsigned char kMaskPng[] = {
+    0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48, 0x44, 0x52, 0x00, 0x00, 0x00,
+    0x04, 0x00, 0x00, 0x00, 0x04, 0x08, 0x06, 0x00, 0x00, 0x00, 0xa9, 0xf1, 0x9e, 0x7e, 0x00, 0x00, 0x00, 0x24, 0x49,
+    0x44, 0x41, 0x54, 0x78, 0xda, 0x63, 0x38, 0x71, 0xe2, 0xc4, 0x7f, 0x28, 0x76, 0x00, 0xe2, 0x7a, 0x06, 0x24, 0x01,
+    0x06, 0x98, 0xc0, 0x7e, 0xa8, 0x2c, 0x88, 0xdd, 0x00, 0x26, 0xa0, 0x1c, 0x10, 0x76, 0x00, 0x00, 0x49, 0x53, 0x2c,
+    0xfa, 0x03, 0x35, 0x39, 0xb3, 0x00, 0x00, 0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60, 0x82};
+
+TEST_CASE("gltf alpha: MASK cuts out exactly the texels below the cutoff, in every intersector, for every ray kind",
+          "[gltf][alpha]") {
+  rt_test::TempDir dir;
+  rt_test::write_file(dir / "mask.png", std::string(reinterpret_cast<const char*>(kMaskPng), sizeof(kMaskPng)));
+  GltfBuilder builder;
+  // The unit quad z = 0 (texture v down from its top edge y = 1), and an opaque wall at z = -1
+  // behind it that rays through the holes must hit.
+  const std::vector<rt::Vec3f> quad{{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+  const int uv = builder.accessor({{"bufferView", builder.view(GltfBuilder::bytes_of(std::vector<rt::Vec2f>{{0, 1}, {1, 1}, {1, 0}, {0, 0}}))},
+                                   {"componentType", kFloat}, {"count", 4}, {"type", "VEC2"}});
+  builder.node({{"mesh", builder.mesh({{"attributes", {{"POSITION", builder.vec3s(quad)}, {"TEXCOORD_0", uv}}},
+                                       {"indices", builder.indices({0, 1, 2, 0, 2, 3})}, {"material", 0}})}});
+  const std::vector<rt::Vec3f> wall{{-5, -5, -1}, {5, -5, -1}, {5, 5, -1}, {-5, 5, -1}};
+  builder.node({{"mesh", builder.mesh({{"attributes", {{"POSITION", builder.vec3s(wall)}}},
+                                       {"indices", builder.indices({0, 1, 2, 0, 2, 3})}, {"material", 1}})}});
+  builder.doc["materials"] = {{{"alphaMode", "MASK"}, {"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}}},
+                              {{"pbrMetallicRoughness", {{"baseColorFactor", {1, 1, 1, 1}}}}}};
+  builder.doc["textures"] = {{{"source", 0}, {"sampler", 0}}};
+  builder.doc["samplers"] = {{{"magFilter", 9728}, {"wrapS", 33071}, {"wrapT", 33071}}};  // NEAREST, CLAMP
+  builder.doc["images"] = {{{"uri", "mask.png"}}};
+  const std::string path = builder.write(dir, "mask");
+
+  for (const char* mode : {"MASK", "BLEND"}) {
+    builder.doc["materials"][0]["alphaMode"] = mode;
+    const rt::Scene scene = load(builder.write(dir, "mask"));
+    REQUIRE(scene.materials.size() == 2);
+    const rt::FlatScene flat = rt::flatten_scene(scene);
+    const rt::SceneAlpha alpha(scene, flat);
+    REQUIRE(alpha.any());
+    const bool mask = std::string(mode) == "MASK";
+    // 64 x 64 rays along -z through texel interiors (texel edges fall on multiples of 16).
+    std::vector<rt::Ray> rays;
+    std::vector<bool> expect_quad, expect_blocked;
+    for (int j = 0; j < 64; ++j)
+      for (int i = 0; i < 64; ++i) {
+        rt::Ray ray;
+        ray.origin = rt::Vec3f((i + 0.5f) / 64.0f, (j + 0.5f) / 64.0f, 2.0f);
+        ray.direction = rt::Vec3f(0, 0, -1);
+        rays.push_back(ray);
+        const double a = kMaskAlpha[3 - j / 16][i / 16] / 255.0;  // row 0 of the image is the top, y = 1
+        expect_quad.push_back(mask ? a >= 0.5 : a > 0.0);  // closest hits: the quad's surface is there
+        expect_blocked.push_back(true);                    // the wall blocks every ray anyway
+      }
+    struct Kind {
+      const char* name;
+      rt::AccelKind kind;
+      rt::EmbreeKernel kernel;
+    };
+    for (const Kind& k : {Kind{"embree native", rt::AccelKind::embree, rt::EmbreeKernel::native},
+                          Kind{"embree watertight", rt::AccelKind::embree, rt::EmbreeKernel::watertight},
+                          Kind{"reference", rt::AccelKind::reference, rt::EmbreeKernel::native}}) {
+      rt::AccelOptions options;
+      options.embree_kernel = k.kernel;
+      const auto accel = rt::build_accel(k.kind, flat, rt::with_alpha(options, alpha));
+      REQUIRE(accel->alpha_test() == &alpha);
+      std::vector<rt::Hit> coherent(rays.size());
+      accel->intersect_coherent(rays, coherent);
+      std::vector<std::uint8_t> blocked(rays.size());
+      int wrong = 0, wrong_coherent = 0, wrong_shadow = 0;
+      for (std::size_t r = 0; r < rays.size(); ++r) {
+        const rt::Hit hit = accel->intersect(rays[r]);
+        REQUIRE(hit.found());
+        const bool on_quad = hit.t == Approx(2.0f);
+        wrong += on_quad != expect_quad[r] || (!on_quad && hit.t != Approx(3.0f));
+        wrong_coherent += coherent[r].primitive != hit.primitive || coherent[r].t != hit.t;
+        // A shadow ray that ends before the wall: blocked where the quad blocks.
+        rt::Ray shadow = rays[r];
+        shadow.tfar = 2.5f;
+        const double a = kMaskAlpha[3 - (r / 64) / 16][(r % 64) / 16] / 255.0;
+        wrong_shadow += accel->occluded(shadow) != (a >= 0.5);  // mask: the cutoff; blend: 1/2
+        rays[r].tfar = 2.5f;
+      }
+      accel->occluded_coherent(rays, blocked);
+      int wrong_shadow_coherent = 0;
+      for (std::size_t r = 0; r < rays.size(); ++r) {
+        const double a = kMaskAlpha[3 - (r / 64) / 16][(r % 64) / 16] / 255.0;
+        wrong_shadow_coherent += (blocked[r] != 0) != (a >= 0.5);
+        rays[r].tfar = rt::kInfinity;
+      }
+      INFO(mode << ", " << k.name);
+      CHECK(wrong == 0);
+      CHECK(wrong_coherent == 0);
+      CHECK(wrong_shadow == 0);
+      CHECK(wrong_shadow_coherent == 0);
+    }
+    CHECK(alpha.calls() > 0);
+  }
+}
+
+TEST_CASE("gltf alpha: alphaMode, alphaCutoff and the base colour alpha map onto the material", "[gltf][alpha]") {
+  rt_test::TempDir dir;
+  GltfBuilder builder;
+  builder.triangle(true);
+  builder.doc["meshes"][0]["primitives"][0]["material"] = 0;
+  builder.doc["materials"] = {{{"alphaMode", "MASK"}, {"alphaCutoff", 0.3},
+                               {"pbrMetallicRoughness", {{"baseColorFactor", {1, 1, 1, 0.2}}}}}};
+  const rt::Material mask = load(builder.write(dir, "a")).materials.at(0);
+  CHECK(mask.alpha_mode == rt::AlphaMode::mask);
+  CHECK(mask.alpha_cutoff == 0.3f);
+  CHECK(mask.alpha == 0.2f);
+  builder.doc["materials"][0]["alphaMode"] = "BLEND";
+  CHECK(load(builder.write(dir, "a")).materials.at(0).alpha_mode == rt::AlphaMode::blend);
+  builder.doc["materials"][0]["alphaMode"] = "OPAQUE";
+  CHECK_FALSE(load(builder.write(dir, "a")).materials.at(0).has_alpha());
+  builder.doc["materials"][0]["alphaMode"] = "CUTOUT";
+  const std::string bad = builder.write(dir, "a");
+  CHECK_THAT(load_error(bad), Contains(bad + ":/materials/0/alphaMode: 'CUTOUT' is not OPAQUE, MASK or BLEND"));
 }
 
 TEST_CASE("gltf: truncated and corrupted copies of a file never crash the loader", "[gltf]") {

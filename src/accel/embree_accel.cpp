@@ -114,18 +114,51 @@ float widened(double t) {
   return f + std::abs(f) * 0x1p-20f;
 }
 
-// Intersection filter of the native triangle geometry: Embree offers candidates one after another,
-// having set the ray's tfar to the candidate's t.
+// What a geometry's callbacks read (its Embree user pointer): the world-space scene, the box
+// padding of user geometries, and, for the triangle geometries of a scene with alpha, which
+// FlatScene triangle each primitive is and the alpha test.
+struct UserGeometryData {
+  const FlatScene* flat = nullptr;
+  float box_padding = 0.0f;  // world-space units, added on every side of each primitive's box
+  const std::uint32_t* triangles = nullptr;  // FlatScene index of each primitive; null: the same index
+  const AlphaTest* alpha = nullptr;          // set on the geometry of alpha-tested triangles only
+};
+
+// FlatScene triangle of primitive `prim` of the geometry whose data is `data`.
+unsigned flat_triangle(const UserGeometryData* data, unsigned prim) {
+  return data && data->triangles ? data->triangles[prim] : prim;
+}
+
+// Context intersection filter of the native triangle kernel: Embree offers candidates one after
+// another, having set the ray's tfar to the candidate's t. kMapped: the scene's triangles are
+// split into an opaque and an alpha-tested geometry (UserGeometryData::triangles numbers them).
+template <bool kMapped>
 void order_hits(const RTCFilterFunctionNArguments* args) {
   auto* context = reinterpret_cast<HitContext*>(args->context);
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] == 0) continue;
     float& tfar = RTCRayN_tfar(args->ray, args->N, i);
-    if (context->of(args->ray, args->N, i).offer(tfar, RTCHitN_primID(args->hit, args->N, i), RTCHitN_u(args->hit, args->N, i),
-                       RTCHitN_v(args->hit, args->N, i)))
+    unsigned prim = RTCHitN_primID(args->hit, args->N, i);
+    if constexpr (kMapped) prim = flat_triangle(static_cast<const UserGeometryData*>(args->geometryUserPtr), prim);
+    if (context->of(args->ray, args->N, i).offer(tfar, prim, RTCHitN_u(args->hit, args->N, i),
+                                                 RTCHitN_v(args->hit, args->N, i)))
       tfar = widened(tfar);
     else
       args->valid[i] = 0;
+  }
+}
+
+// Geometry filters of the native alpha-tested triangles (Embree's documented way to cut out
+// surfaces, run before the context filter): a candidate where the surface is not there is
+// rejected and traversal goes on behind it.
+template <bool kOcclusion>
+void alpha_filter(const RTCFilterFunctionNArguments* args) {
+  const auto* data = static_cast<const UserGeometryData*>(args->geometryUserPtr);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] == 0) continue;
+    const unsigned prim = flat_triangle(data, RTCHitN_primID(args->hit, args->N, i));
+    const float b1 = RTCHitN_u(args->hit, args->N, i), b2 = RTCHitN_v(args->hit, args->N, i);
+    if (!(kOcclusion ? data->alpha->blocks(prim, b1, b2) : data->alpha->hit_counts(prim, b1, b2))) args->valid[i] = 0;
   }
 }
 
@@ -133,13 +166,8 @@ void order_hits(const RTCFilterFunctionNArguments* args) {
 // User geometries: spheres always, and triangles with the watertight kernel. Their callbacks run
 // the reference's double-precision tests on the FlatScene data.
 
-constexpr unsigned kTriangleGeometry = 0, kSphereGeometry = 1;
-
-// What the user-geometry callbacks read: the world-space scene and the box padding.
-struct UserGeometryData {
-  const FlatScene* flat = nullptr;
-  float box_padding = 0.0f;  // world-space units, added on every side of each primitive's box
-};
+// Geometry IDs. Alpha-tested triangles get a geometry of their own only when the scene has some.
+constexpr unsigned kTriangleGeometry = 0, kSphereGeometry = 1, kAlphaGeometry = 2;
 
 // Embree traverses user geometry with its fast, non-conservative box test (Embree 3.13 compiles
 // BVH4VirtualIntersector1 with robust = false whatever the scene flags say), so a ray through a
@@ -170,8 +198,9 @@ void set_bounds(const RTCBoundsFunctionArguments* args, const Vec3f& lower, cons
 }
 
 void triangle_bounds(const RTCBoundsFunctionArguments* args) {
-  const FlatScene& flat = *static_cast<const UserGeometryData*>(args->geometryUserPtr)->flat;
-  const Vec3u tri = flat.triangles[args->primID];
+  const auto* data = static_cast<const UserGeometryData*>(args->geometryUserPtr);
+  const FlatScene& flat = *data->flat;
+  const Vec3u tri = flat.triangles[flat_triangle(data, args->primID)];
   const Vec3f a = flat.positions[tri.x], b = flat.positions[tri.y], c = flat.positions[tri.z];
   set_bounds(args, glm::min(a, glm::min(b, c)), glm::max(a, glm::max(b, c)));
 }
@@ -210,19 +239,22 @@ Vec3d ray_direction(RTCRayN* ray, unsigned n, unsigned i) {
 
 template <unsigned kGeometry>
 void user_intersect(const RTCIntersectFunctionNArguments* args) {
-  const FlatScene& flat = *static_cast<const UserGeometryData*>(args->geometryUserPtr)->flat;
+  const auto* data = static_cast<const UserGeometryData*>(args->geometryUserPtr);
+  const FlatScene& flat = *data->flat;
   auto* context = reinterpret_cast<HitContext*>(args->context);
   RTCRayN* ray = RTCRayHitN_RayN(args->rayhit, args->N);
   RTCHitN* hit_out = RTCRayHitN_HitN(args->rayhit, args->N);
   // Spheres are numbered after all triangles.
   const unsigned prim = kGeometry == kSphereGeometry ? static_cast<unsigned>(flat.triangles.size()) + args->primID
-                                                     : args->primID;
+                                                     : flat_triangle(data, args->primID);
+  const unsigned tested = kGeometry == kSphereGeometry ? args->primID : prim;
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] == 0) continue;
     TriangleHitD hit;
     BestHit& best = context->of(ray, args->N, i);
-    if (!test_primitive(kGeometry, flat, args->primID, ray_origin(ray, args->N, i), ray_direction(ray, args->N, i),
+    if (!test_primitive(kGeometry, flat, tested, ray_origin(ray, args->N, i), ray_direction(ray, args->N, i),
                         RTCRayN_tnear(ray, args->N, i), best.t, hit) ||
+        (data->alpha && !data->alpha->hit_counts(prim, static_cast<float>(hit.b1), static_cast<float>(hit.b2))) ||
         !best.offer(hit.t, prim, hit.b1, hit.b2))
       continue;
     RTCRayN_tfar(ray, args->N, i) = widened(hit.t);
@@ -236,13 +268,16 @@ void user_intersect(const RTCIntersectFunctionNArguments* args) {
 
 template <unsigned kGeometry>
 void user_occluded(const RTCOccludedFunctionNArguments* args) {
-  const FlatScene& flat = *static_cast<const UserGeometryData*>(args->geometryUserPtr)->flat;
+  const auto* data = static_cast<const UserGeometryData*>(args->geometryUserPtr);
+  const FlatScene& flat = *data->flat;
+  const unsigned prim = kGeometry == kSphereGeometry ? args->primID : flat_triangle(data, args->primID);
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] == 0) continue;
     float& tfar = RTCRayN_tfar(args->ray, args->N, i);
     TriangleHitD hit;
-    if (test_primitive(kGeometry, flat, args->primID, ray_origin(args->ray, args->N, i),
-                       ray_direction(args->ray, args->N, i), RTCRayN_tnear(args->ray, args->N, i), tfar, hit))
+    if (test_primitive(kGeometry, flat, prim, ray_origin(args->ray, args->N, i),
+                       ray_direction(args->ray, args->N, i), RTCRayN_tnear(args->ray, args->N, i), tfar, hit) &&
+        (!data->alpha || data->alpha->blocks(prim, static_cast<float>(hit.b1), static_cast<float>(hit.b2))))
       tfar = -kInfinity;
   }
 }
@@ -321,14 +356,21 @@ struct EmbreeAccel::Impl {
   EmbreeDevice::Impl* device = nullptr;
   std::int64_t baseline_bytes = 0;  // the device's memory_bytes when this accel began
   RTCScene scene = nullptr;
-  UserGeometryData user_data;  // read by the user-geometry callbacks
+  // Read by the callbacks of the triangle geometry (opaque triangles when the scene has alpha),
+  // the alpha-tested triangles' geometry and the spheres'.
+  UserGeometryData triangle_data, alpha_data, sphere_data;
+  // With alpha: the opaque and the alpha-tested triangles, each with their FlatScene indices.
+  std::vector<Vec3u> opaque_triangles, alpha_triangles;
+  std::vector<std::uint32_t> opaque_index, alpha_index;
+  const AlphaTest* alpha = nullptr;   // null unless some triangle is tested
+  RTCFilterFunctionN context_filter = &order_hits<false>;
   bool use_packets = true;     // the *_coherent queries trace packets (see intersect_coherent)
 
   template <unsigned kGeometry>
-  RTCGeometry new_user_geometry(std::size_t count, RTCBoundsFunction bounds) {
+  RTCGeometry new_user_geometry(std::size_t count, RTCBoundsFunction bounds, UserGeometryData& data) {
     RTCGeometry geometry = rtcNewGeometry(device->device, RTC_GEOMETRY_TYPE_USER);
     rtcSetGeometryUserPrimitiveCount(geometry, static_cast<unsigned>(count));
-    rtcSetGeometryUserData(geometry, &user_data);
+    rtcSetGeometryUserData(geometry, &data);
     rtcSetGeometryBoundsFunction(geometry, bounds, nullptr);
     rtcSetGeometryIntersectFunction(geometry, &user_intersect<kGeometry>);
     rtcSetGeometryOccludedFunction(geometry, &user_occluded<kGeometry>);
@@ -340,6 +382,27 @@ struct EmbreeAccel::Impl {
     rtcCommitGeometry(geometry);
     rtcAttachGeometryByID(scene, geometry, id);
     rtcReleaseGeometry(geometry);
+  }
+
+  // With an alpha test that tests some triangle: the opaque and the tested triangles apart, the
+  // geometries' data numbering them, and the context filter that maps the numbers back.
+  void split_by_alpha(const FlatScene& flat, const AlphaTest* test) {
+    if (!test) return;
+    for (std::uint32_t t = 0; t < flat.triangle_count(); ++t) {
+      const bool tested = test->tested(t);
+      (tested ? alpha_triangles : opaque_triangles).push_back(flat.triangles[t]);
+      (tested ? alpha_index : opaque_index).push_back(t);
+    }
+    if (alpha_triangles.empty()) {
+      opaque_triangles = {};
+      opaque_index = {};
+      return;
+    }
+    alpha = test;
+    triangle_data.triangles = opaque_index.data();
+    alpha_data.triangles = alpha_index.data();
+    alpha_data.alpha = test;
+    context_filter = &order_hits<true>;
   }
 
   ~Impl() {
@@ -365,31 +428,50 @@ EmbreeAccel::EmbreeAccel(const FlatScene& flat, const AccelOptions& options) : i
                                      (compact ? RTC_SCENE_FLAG_COMPACT : RTC_SCENE_FLAG_NONE) |
                                      (options.embree_robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE)));
   rtcSetSceneBuildQuality(impl_->scene, to_embree(options.embree_quality));
-  impl_->user_data = {&flat, user_box_padding(flat)};
+  const float padding = user_box_padding(flat);
+  impl_->triangle_data = impl_->alpha_data = impl_->sphere_data = {&flat, padding, nullptr, nullptr};
   impl_->use_packets = (options.embree_robust || options.embree_kernel == EmbreeKernel::watertight) && !compact;
-  if (flat.triangle_count() > 0) {
+  impl_->split_by_alpha(flat, options.alpha_test);
+  // The triangles of one geometry: all of them (no alpha: FlatScene's buffers, shared), or the
+  // opaque or alpha-tested ones (own index buffers, FlatScene numbers in data.triangles).
+  const auto add_triangles = [&](unsigned id, const std::vector<Vec3u>& triangles, UserGeometryData& data) {
+    if (triangles.empty()) return;
     RTCGeometry geometry = nullptr;
     if (options.embree_kernel == EmbreeKernel::native) {
       geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-      // Shared buffers: Embree reads FlatScene's vectors in place. FlatScene guarantees one spare
+      // Shared buffers: Embree reads the vectors in place. FlatScene guarantees one spare
       // Vec3f of capacity past the last vertex for Embree's 16-byte vertex loads.
       rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, flat.positions.data(), 0,
                                  sizeof(Vec3f), flat.positions.size());
-      rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, flat.triangles.data(), 0,
-                                 sizeof(Vec3u), flat.triangles.size());
+      rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, triangles.data(), 0,
+                                 sizeof(Vec3u), triangles.size());
+      if (data.triangles) rtcSetGeometryUserData(geometry, &data);
+      if (data.alpha) {
+        rtcSetGeometryIntersectFilterFunction(geometry, &alpha_filter<false>);
+        rtcSetGeometryOccludedFilterFunction(geometry, &alpha_filter<true>);
+      }
     } else {
-      geometry = impl_->new_user_geometry<kTriangleGeometry>(flat.triangle_count(), &triangle_bounds);
+      geometry = id == kAlphaGeometry ? impl_->new_user_geometry<kAlphaGeometry>(triangles.size(), &triangle_bounds, data)
+                                      : impl_->new_user_geometry<kTriangleGeometry>(triangles.size(), &triangle_bounds, data);
     }
-    impl_->attach(geometry, kTriangleGeometry, options.embree_quality);
+    impl_->attach(geometry, id, options.embree_quality);
+  };
+  if (!impl_->alpha) {
+    add_triangles(kTriangleGeometry, flat.triangles, impl_->triangle_data);
+  } else {
+    add_triangles(kTriangleGeometry, impl_->opaque_triangles, impl_->triangle_data);
+    add_triangles(kAlphaGeometry, impl_->alpha_triangles, impl_->alpha_data);
   }
   if (!flat.spheres.empty())
-    impl_->attach(impl_->new_user_geometry<kSphereGeometry>(flat.spheres.size(), &sphere_bounds), kSphereGeometry,
-                  options.embree_quality);
+    impl_->attach(impl_->new_user_geometry<kSphereGeometry>(flat.spheres.size(), &sphere_bounds, impl_->sphere_data),
+                  kSphereGeometry, options.embree_quality);
   rtcCommitScene(impl_->scene);
   impl_->device->throw_if_failed("building the Embree scene", impl_->baseline_bytes);
 }
 
 EmbreeAccel::~EmbreeAccel() = default;
+
+const AlphaTest* EmbreeAccel::alpha_test() const { return impl_->alpha; }
 
 std::size_t EmbreeAccel::memory_bytes() const {
   const std::int64_t bytes = impl_->device->memory_bytes.load(std::memory_order_relaxed) - impl_->baseline_bytes;
@@ -411,7 +493,7 @@ Hit EmbreeAccel::intersect(const Ray& ray) const {
   BestHit best = no_hit_yet(ray);
   HitContext context{{}, &best};
   rtcInitIntersectContext(&context.embree);
-  context.embree.filter = &order_hits;
+  context.embree.filter = impl_->context_filter;
   RTCRayHit rayhit;
   fill_ray(ray, rayhit.ray);
   rayhit.hit.geomID = RTC_INVALID_GEOMETRY_ID;
@@ -437,7 +519,7 @@ void EmbreeAccel::intersect_coherent(std::span<const Ray> rays, std::span<Hit> h
     HitContext context{{}, best};
     rtcInitIntersectContext(&context.embree);
     context.embree.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-    context.embree.filter = &order_hits;
+    context.embree.filter = impl_->context_filter;
     alignas(64) RTCRayHit16 packet;
     alignas(64) int valid[kPacketSize];
     for (unsigned i = 0; i < kPacketSize; ++i) {

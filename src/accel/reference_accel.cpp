@@ -124,7 +124,10 @@ bool intersect_sphere(const Vec3d& origin, const Vec3d& direction, double tnear,
   return false;
 }
 
-ReferenceAccel::ReferenceAccel(const FlatScene& scene, ReferenceTest test) : test_(test), spheres_(scene.spheres) {
+ReferenceAccel::ReferenceAccel(const FlatScene& scene, ReferenceTest test, const AlphaTest* alpha)
+    : test_(test), spheres_(scene.spheres) {
+  for (std::uint32_t t = 0; alpha && t < scene.triangle_count() && !alpha_; ++t)
+    if (alpha->tested(t)) alpha_ = alpha;
   triangles_.reserve(scene.triangle_count());
   for (const Vec3u& tri : scene.triangles)
     triangles_.push_back({Vec3d(scene.positions[tri.x]), Vec3d(scene.positions[tri.y]), Vec3d(scene.positions[tri.z])});
@@ -145,7 +148,9 @@ Hit ReferenceAccel::intersect(const Ray& ray) const {
     TriangleHitD hit;
     // Later triangles must be strictly closer to replace a hit, so equal t keeps the lowest index.
     if (intersect_one(triangles_[i], origin, direction, ray.tnear, best.t, hit) &&
-        (best_index == kNoPrimitive || hit.t < best.t)) {
+        (best_index == kNoPrimitive || hit.t < best.t) &&
+        (!alpha_ || !alpha_->tested(std::uint32_t(i)) ||
+         alpha_->hit_counts(std::uint32_t(i), static_cast<float>(hit.b1), static_cast<float>(hit.b2)))) {
       best = hit;
       best_index = static_cast<std::uint32_t>(i);
     }
@@ -165,8 +170,11 @@ Hit ReferenceAccel::intersect(const Ray& ray) const {
 bool ReferenceAccel::occluded(const Ray& ray) const {
   const Vec3d origin(ray.origin), direction(ray.direction);
   TriangleHitD hit;
-  for (const TriangleD& tri : triangles_)
-    if (intersect_one(tri, origin, direction, ray.tnear, ray.tfar, hit)) return true;
+  for (std::size_t i = 0; i < triangles_.size(); ++i)
+    if (intersect_one(triangles_[i], origin, direction, ray.tnear, ray.tfar, hit) &&
+        (!alpha_ || !alpha_->tested(std::uint32_t(i)) ||
+         alpha_->blocks(std::uint32_t(i), static_cast<float>(hit.b1), static_cast<float>(hit.b2))))
+      return true;
   double t;
   for (const FlatSphere& sphere : spheres_)
     if (intersect_sphere(origin, direction, ray.tnear, ray.tfar, sphere, t)) return true;

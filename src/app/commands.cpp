@@ -27,6 +27,7 @@
 #include "rt/io/image_io.h"
 #include "rt/io/load_scene.h"
 #include "rt/io/merge.h"
+#include "rt/render/alpha.h"
 #include "rt/render/fingerprint.h"
 #include "rt/render/render.h"
 #include "rt/view/viewer.h"
@@ -267,7 +268,8 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
   warn_about_dropped_triangles(scene, flat, args.quiet);
 
   phase_start = Clock::now();
-  const std::unique_ptr<Accel> accel = build_accel(batch.accel_kind, flat, batch.accel_options);
+  const SceneAlpha alpha(scene, flat);
+  const std::unique_ptr<Accel> accel = build_accel(batch.accel_kind, flat, with_alpha(batch.accel_options, alpha));
   const double build_s = seconds_since(phase_start);
 
   RenderOptions options = render_options(args, batch);
@@ -348,6 +350,8 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
                      {"shadow", result.rays.shadow},
                      {"reflection", result.rays.reflection},
                      {"refraction", result.rays.refraction},
+                     {"see_through", result.rays.see_through},
+                     {"alpha_tests", alpha.calls()},
                      {"area_light", result.rays.area_light},
                      {"total", result.rays.total()}};
     stats["effects"] = effects_json(result.plan, scene);
@@ -462,7 +466,8 @@ int run_view(const ViewArgs& args) {
   release_object_meshes(scene);
   if (!args.render.quiet) print_notices(args.render.scene, report, scene);
   warn_about_dropped_triangles(scene, flat, args.render.quiet);
-  const std::unique_ptr<Accel> accel = build_accel(batch.accel_kind, flat, batch.accel_options);
+  const SceneAlpha alpha(scene, flat);
+  const std::unique_ptr<Accel> accel = build_accel(batch.accel_kind, flat, with_alpha(batch.accel_options, alpha));
 
   options.render = render_options(args.render, batch);
   options.screenshot_path = args.screenshot;

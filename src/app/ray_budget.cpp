@@ -22,7 +22,8 @@ struct BudgetRow {
   std::uint64_t rays = 0;
   std::optional<std::uint64_t> hits;
   double ticks = 0.0;
-  std::optional<std::uint64_t> refraction;  // depth rows of a scene with glass: the refracted share of `rays`
+  // Depth rows of a scene with glass or blended surfaces: the refracted and see-through shares of `rays`.
+  std::optional<std::uint64_t> refraction, see_through;
 };
 
 std::vector<BudgetRow> budget_rows(const RenderResult& result, const Scene& scene) {
@@ -30,22 +31,25 @@ std::vector<BudgetRow> budget_rows(const RenderResult& result, const Scene& scen
   const RayCounts& rays = result.rays;
   std::vector<BudgetRow> rows;
   rows.push_back({Group::camera, 0, "camera", rays.camera, at(rays.hits_per_depth, 0),
-                  double(at(rays.intersect_ticks_per_depth, 0)), std::nullopt});
+                  double(at(rays.intersect_ticks_per_depth, 0)), std::nullopt, std::nullopt});
   for (std::size_t j = 0; j < scene.lights.size(); ++j)
     rows.push_back({Group::shadow, j, fmt::format("shadow light {}", j), at(rays.shadow_per_light, j), std::nullopt,
-                    double(at(rays.shadow_ticks_per_light, j)), std::nullopt});
+                    double(at(rays.shadow_ticks_per_light, j)), std::nullopt, std::nullopt});
   for (std::size_t e = 0; e < result.plan.emitters.size(); ++e)
     rows.push_back({Group::area_light, e, fmt::format("area light {}", e), at(rays.area_light_per_emitter, e),
-                    std::nullopt, double(at(rays.area_light_ticks_per_emitter, e)), std::nullopt});
-  // Reflection and refraction rays of one depth share their closest-hit timing and hit count.
-  const std::size_t depths = std::max({rays.reflection_per_depth.size(), rays.refraction_per_depth.size(), std::size_t(1)});
+                    std::nullopt, double(at(rays.area_light_ticks_per_emitter, e)), std::nullopt, std::nullopt});
+  // Reflection, refraction and see-through rays of one depth share their closest-hit timing and
+  // hit count.
+  const std::size_t depths = std::max({rays.reflection_per_depth.size(), rays.refraction_per_depth.size(),
+                                       rays.see_through_per_depth.size(), std::size_t(1)});
+  const bool mixed = rays.refraction + rays.see_through > 0;
   for (std::size_t d = 1; d < depths; ++d) {
-    const std::uint64_t refracted = at(rays.refraction_per_depth, d);
-    rows.push_back({Group::reflection, d,
-                    fmt::format("{} depth {}", rays.refraction > 0 ? "secondary" : "reflection", d),
-                    at(rays.reflection_per_depth, d) + refracted, at(rays.hits_per_depth, d),
+    const std::uint64_t refracted = at(rays.refraction_per_depth, d), onward = at(rays.see_through_per_depth, d);
+    rows.push_back({Group::reflection, d, fmt::format("{} depth {}", mixed ? "secondary" : "reflection", d),
+                    at(rays.reflection_per_depth, d) + refracted + onward, at(rays.hits_per_depth, d),
                     double(at(rays.intersect_ticks_per_depth, d)),
-                    rays.refraction > 0 ? std::optional<std::uint64_t>(refracted) : std::nullopt});
+                    mixed ? std::optional<std::uint64_t>(refracted) : std::nullopt,
+                    mixed ? std::optional<std::uint64_t>(onward) : std::nullopt});
   }
   return rows;
 }
@@ -109,8 +113,9 @@ nlohmann::ordered_json ray_budget_json(const RenderResult& result, const Scene& 
   const auto row_json = [&](const BudgetRow& row) {
     nlohmann::ordered_json json = {{"rays", row.rays}};
     if (row.refraction) {
-      json["reflection"] = row.rays - *row.refraction;
+      json["reflection"] = row.rays - *row.refraction - *row.see_through;
       json["refraction"] = *row.refraction;
+      json["see_through"] = *row.see_through;
     }
     if (row.hits) json["hits"] = *row.hits;
     if (timed) {
@@ -163,7 +168,9 @@ std::string explain_render(const RenderResult& result, const Scene& scene) {
     text += fmt::format("  {:<20} {:>14} {:>14} {:>9.3f} {:>6.1f}%\n", row.kind, row.rays,
                         row.hits ? fmt::to_string(*row.hits) : "-", share(row.ticks, rays) * result.seconds,
                         100.0 * share(row.ticks, rays));
-    if (row.refraction) text += fmt::format("    {:<18} {:>14}\n", "of them refracted", *row.refraction);
+    if (row.refraction && *row.refraction) text += fmt::format("    {:<18} {:>14}\n", "of them refracted", *row.refraction);
+    if (row.see_through && *row.see_through)
+      text += fmt::format("    {:<18} {:>14}\n", "of them see-through", *row.see_through);
   }
   const double rest = std::max(0.0, double(rays.loop_ticks) - query_ticks);
   text += fmt::format("  {:<20} {:>14} {:>14} {:>9.3f} {:>6.1f}%\n", "shading, camera setup", "-", "-",

@@ -101,6 +101,7 @@ class GltfReader {
   const std::vector<Model>& models_of_mesh(int mesh);
   std::uint32_t material_index(int material);
   Material read_material(int index);
+  void read_alpha(const tinygltf::Material& source, const std::string& at, Material& material);
   void read_transmission(const tinygltf::Material& source, const std::string& at, const Vec3d& base, double metallic,
                          double ior, Material& material);
   // Material `source`'s extension `extension`'s member `key`, or null when absent; numbers are
@@ -422,6 +423,22 @@ Texture GltfReader::read_texture(const tinygltf::TextureInfo& info, const std::s
   return readable->second ? result : Texture{};
 }
 
+// alphaMode MASK and BLEND (docs/alpha.md): alpha = baseColorFactor's alpha x the base colour
+// texture's alpha channel; OPAQUE ignores it, as the spec says.
+void GltfReader::read_alpha(const tinygltf::Material& source, const std::string& at, Material& material) {
+  if (source.alphaMode == "OPAQUE") return;
+  if (source.alphaMode != "MASK" && source.alphaMode != "BLEND")
+    fail(child(at, "alphaMode"), fmt::format("'{}' is not OPAQUE, MASK or BLEND", source.alphaMode));
+  material.alpha_mode = source.alphaMode == "MASK" ? AlphaMode::mask : AlphaMode::blend;
+  const double alpha = source.pbrMetallicRoughness.baseColorFactor[3];
+  if (!(alpha >= 0.0 && alpha <= 1.0))
+    fail(child(at, "pbrMetallicRoughness/baseColorFactor"), fmt::format("alpha {} is outside [0, 1]", alpha));
+  material.alpha = static_cast<float>(alpha);
+  if (!(source.alphaCutoff >= 0.0)) fail(child(at, "alphaCutoff"), "must be >= 0");
+  material.alpha_cutoff = static_cast<float>(source.alphaCutoff);
+  material.alpha_texture = material.diffuse_texture;  // the base colour texture's alpha channel
+}
+
 // KHR_materials_transmission (+ KHR_materials_volume): the glass share of a material whose
 // opaque part read_material has set up (docs/glass.md). Metals transmit nothing (the spec weights
 // transmission by 1 - metallic). A volume of thickness 0, or none, is the spec's thin wall.
@@ -511,7 +528,7 @@ Material GltfReader::read_material(int index) {
   }
   if (source.normalTexture.index >= 0) count("normal maps ignored");
   if (source.occlusionTexture.index >= 0) count("occlusion maps ignored");
-  if (source.alphaMode == "BLEND" || source.alphaMode == "MASK") count("alpha modes BLEND and MASK rendered opaque");
+  read_alpha(source, at, material);
 
   // KHR_materials_ior: the dielectric's index, which also sets its normal-incidence reflectance
   // ((n - 1) / (n + 1))^2 (0.04 at the default 1.5).

@@ -153,6 +153,15 @@ Material to_material(const tinyobj::material_t& m, const fs::path& directory) {
     material.transmission = filter == Color(0.0f) ? Color(1.0f) : filter;
     // Some exporters write Ni 0 for "unset": that reads as the usual glass, 1.5.
     material.ior = m.ior > 0 ? static_cast<float>(m.ior) : 1.5f;
+  } else if (m.dissolve < 1.0 || !m.alpha_texname.empty()) {
+    // Dissolve (d, or 1 - Tr) and map_d: see-through with weight alpha (docs/alpha.md). Glass
+    // above is see-through by refraction instead, so its d is not applied on top.
+    material.alpha_mode = AlphaMode::blend;
+    material.alpha = std::clamp(static_cast<float>(m.dissolve), 0.0f, 1.0f);
+    if (!m.alpha_texname.empty()) {
+      material.alpha_texture.path = (directory / m.alpha_texname).lexically_normal().string();
+      material.alpha_from_grey = true;  // a scalar map; an image with an alpha channel uses that
+    }
   }
   return material;
 }

@@ -167,7 +167,7 @@ Camera SceneReader::read_camera(const json& value, const std::string& where) con
 Material SceneReader::read_material(const json& value, const std::string& where, const std::string& name) const {
   require_object(value, where);
   check_keys(value, where, {"ambient", "diffuse", "specular", "emission", "shininess", "emitter", "transmission", "ior",
-                            "thin", "attenuation_color", "attenuation_distance"});
+                            "thin", "attenuation_color", "attenuation_distance", "alpha", "alpha_mode", "alpha_cutoff"});
   Material material;
   material.name = name;
   if (value.contains("ambient")) material.ambient = read_color(value["ambient"], child(where, "ambient"));
@@ -211,6 +211,26 @@ Material SceneReader::read_material(const json& value, const std::string& where,
     const double distance = read_number(value["attenuation_distance"], child(where, "attenuation_distance"));
     if (!(distance > 0.0)) fail(child(where, "attenuation_distance"), "attenuation_distance must be > 0");
     material.attenuation_distance = static_cast<float>(distance);
+  }
+  // Alpha (docs/alpha.md): "alpha" in [0, 1], seen-through as "blend" (the default once "alpha"
+  // is given) or cut out below "alpha_cutoff" as "mask".
+  if (value.contains("alpha")) {
+    const double alpha = read_number(value["alpha"], child(where, "alpha"));
+    if (!(alpha >= 0.0 && alpha <= 1.0)) fail(child(where, "alpha"), fmt::format("alpha {} is outside [0, 1]", alpha));
+    material.alpha = static_cast<float>(alpha);
+    material.alpha_mode = AlphaMode::blend;
+  }
+  if (value.contains("alpha_mode")) {
+    const std::string mode = read_string(value["alpha_mode"], child(where, "alpha_mode"));
+    if (mode == "opaque") material.alpha_mode = AlphaMode::opaque;
+    else if (mode == "mask") material.alpha_mode = AlphaMode::mask;
+    else if (mode == "blend") material.alpha_mode = AlphaMode::blend;
+    else fail(child(where, "alpha_mode"), fmt::format("'{}' is not opaque, mask or blend", mode));
+  }
+  if (value.contains("alpha_cutoff")) {
+    const double cutoff = read_number(value["alpha_cutoff"], child(where, "alpha_cutoff"));
+    if (!(cutoff >= 0.0 && cutoff <= 1.0)) fail(child(where, "alpha_cutoff"), fmt::format("alpha_cutoff {} is outside [0, 1]", cutoff));
+    material.alpha_cutoff = static_cast<float>(cutoff);
   }
   return material;
 }

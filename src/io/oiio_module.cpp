@@ -45,6 +45,8 @@ class OiioTextureFiles final : public TextureFiles {
       system_ = OIIO::TextureSystem::create(/*shared=*/true);
       system_->attribute("automip", 0);      // lookups never leave MIP level 0
       system_->attribute("gray_to_rgb", 1);  // grey (+ alpha) images give grey RGB
+      // Colour as stored, not multiplied by alpha: glTF and MTL keep the two apart (issue 20).
+      system_->attribute("unassociatedalpha", 1);
     }
     const OIIO::ustring file(path);
     OIIO::TextureSystem::TextureHandle* handle = system_->get_texture_handle(file);
@@ -187,15 +189,38 @@ class Oiio final : public OiioModule {
     return readable;
   }
 
-  std::optional<Vec4f> texture_mean(const Texture& texture) const override {
+  // `texture`'s pixels as float, colour unassociated from alpha; false when it cannot be read.
+  static bool read_texture_pixels(const Texture& texture, OIIO::ImageBuf& image) {
     std::optional<OIIO::Filesystem::IOMemReader> reader;
     std::string name = texture.path;
     if (texture.encoded) {
       reader.emplace(texture.encoded->data(), texture.encoded->size());
       name = "embedded" + encoded_image_extension(*texture.encoded);
     }
-    OIIO::ImageBuf image(name, 0, 0, nullptr, nullptr, reader ? &*reader : nullptr);
-    if (!image.read(0, 0, /*force=*/true, OIIO::TypeDesc::FLOAT)) return std::nullopt;
+    OIIO::ImageSpec config;
+    config.attribute("oiio:UnassociatedAlpha", 1);
+    image.reset(name, 0, 0, nullptr, &config, reader ? &*reader : nullptr);
+    return image.read(0, 0, /*force=*/true, OIIO::TypeDesc::FLOAT);
+  }
+
+  std::optional<AlphaImage> read_alpha(const Texture& texture, bool grey_is_alpha) const override {
+    OIIO::ImageBuf image;
+    if (!read_texture_pixels(texture, image)) return std::nullopt;
+    const OIIO::ImageSpec& spec = image.spec();
+    int channel = spec.alpha_channel;
+    if (channel < 0 && (spec.nchannels == 2 || spec.nchannels == 4)) channel = spec.nchannels - 1;
+    if (channel < 0 && grey_is_alpha) channel = 0;
+    if (channel < 0 || spec.width < 1 || spec.height < 1) return std::nullopt;
+    AlphaImage result{spec.width, spec.height, std::vector<float>(std::size_t(spec.width) * std::size_t(spec.height))};
+    if (!image.get_pixels(OIIO::ROI(spec.x, spec.x + spec.width, spec.y, spec.y + spec.height, 0, 1, channel, channel + 1),
+                          OIIO::TypeDesc::FLOAT, result.alpha.data()))
+      return std::nullopt;
+    return result;
+  }
+
+  std::optional<Vec4f> texture_mean(const Texture& texture) const override {
+    OIIO::ImageBuf image;
+    if (!read_texture_pixels(texture, image)) return std::nullopt;
     const OIIO::ImageBufAlgo::PixelStats stats = OIIO::ImageBufAlgo::computePixelStats(image);
     const int channels = image.nchannels();
     if (channels < 1 || stats.avg.size() < static_cast<std::size_t>(channels)) return std::nullopt;

@@ -56,6 +56,15 @@ class OiioModule {
   // As rt::texture_mean (rt/render/texture.h).
   virtual std::optional<Vec4f> texture_mean(const Texture& texture) const = 0;
 
+  // The alpha of `texture` per texel, row 0 at the top, unassociated (colour is never divided or
+  // multiplied by it): its alpha channel, else with `grey_is_alpha` its first channel; nullopt
+  // when it has neither or cannot be read.
+  struct AlphaImage {
+    int width = 0, height = 0;
+    std::vector<float> alpha;  // width x height, row-major
+  };
+  virtual std::optional<AlphaImage> read_alpha(const Texture& texture, bool grey_is_alpha) const = 0;
+
   // A new, empty set of texture files.
   virtual std::unique_ptr<TextureFiles> new_texture_files() const = 0;
 };

@@ -1,5 +1,7 @@
 #include "rt/render/render.h"
 
+#include "rt/render/alpha.h"
+
 #include <x86intrin.h>
 
 #include <algorithm>
@@ -83,8 +85,10 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   const TextureSampler textures(scene);
   RenderResult result;
   result.plan = plan_effects(scene, flat, options.ray_offset, options.effects, &textures);
-  const ShadingContext context{scene, flat, accel, result.plan, options.ray_offset, &textures, false};
-  const ShadingContext timed_context{scene, flat, accel, result.plan, options.ray_offset, &textures, true};
+  ShadingContext context{scene, flat, accel, result.plan, options.ray_offset, &textures, false};
+  context.alpha = dynamic_cast<const SceneAlpha*>(accel.alpha_test());
+  ShadingContext timed_context = context;
+  timed_context.time_queries = true;
   const int tile = std::max(1, options.tile_size);
   const int spp = std::max(1, options.samples_per_pixel);
   if (options.sample_index >= spp)
@@ -287,6 +291,7 @@ std::vector<std::string> trace_pixel(const Scene& scene, const FlatScene& flat, 
   const EffectsPlan plan = plan_effects(scene, flat, options.ray_offset, options.effects, &textures);
   std::vector<std::string> lines;
   ShadingContext context{scene, flat, accel, plan, options.ray_offset, &textures, false};
+  context.alpha = dynamic_cast<const SceneAlpha*>(accel.alpha_test());
   context.trace = &lines;
   const int spp = std::max(1, options.samples_per_pixel);
   ScopedFlushDenormals flush;  // as in render_image, so the trace shows the values the render computes

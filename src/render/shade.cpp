@@ -10,6 +10,7 @@
 
 #include <fmt/format.h>
 
+#include "rt/render/alpha.h"
 #include "rt/render/dielectric.h"
 #include "rt/render/sampling.h"
 
@@ -62,11 +63,13 @@ RayCounts& RayCounts::operator+=(const RayCounts& other) {
   shadow += other.shadow;
   reflection += other.reflection;
   refraction += other.refraction;
+  see_through += other.see_through;
   area_light += other.area_light;
   add_all(shadow_per_light, other.shadow_per_light);
   add_all(area_light_per_emitter, other.area_light_per_emitter);
   add_all(reflection_per_depth, other.reflection_per_depth);
   add_all(refraction_per_depth, other.refraction_per_depth);
+  add_all(see_through_per_depth, other.see_through_per_depth);
   add_all(hits_per_depth, other.hits_per_depth);
   for (int r = 0; r < kSkipRuleCount; ++r) skipped[r] += other.skipped[r];
   add_all(intersect_ticks_per_depth, other.intersect_ticks_per_depth);
@@ -174,8 +177,8 @@ struct DeferredShadows {
     pending.shadow_rays.push_back(shadow_ray);
     pending.shadow_lights.push_back(static_cast<std::uint32_t>(slot));
   }
-  void add_reflection(const Vec3d& reflection) {
-    pixel.reflection = reflection;
+  void add_reflection(const Vec3d& reflection) {  // the reflection, then a blended surface's see-through ray
+    pixel.reflection = pixel.has_reflection ? pixel.reflection + reflection : reflection;
     pixel.has_reflection = true;
   }
 };
@@ -303,7 +306,7 @@ GlassAtPoint glass_at(const ShadingContext& context, std::uint32_t material_id, 
 template <class Shadows, class Skip>
 void add_dielectric_rays(const ShadingContext& context, const SurfacePoint& surface, const Vec3d& normal,
                          const Vec3d& direction, const Material& material, const GlassAtPoint& glass,
-                         const Vec3d& reflective, int depth, RayCounts& counts, const Vec3d& throughput,
+                         const Vec3d& reflective, double coverage, int depth, RayCounts& counts, const Vec3d& throughput,
                          std::uint64_t path_seed, Shadows& shadows, const Skip& skip) {
   const bool entering = glm::dot(direction, surface.geometric_normal) < 0.0;
   const Vec3d facing = entering ? normal : -normal;  // shading normal on the side the ray comes from
@@ -317,10 +320,11 @@ void add_dielectric_rays(const ShadingContext& context, const SurfacePoint& surf
                              : transmitted        ? fresnel_dielectric(cos_incident, eta)
                                                   : 1.0;
   const bool volume = !material.thin_walled;
-  const Vec3d reflection_weight = material.transmission_mix
-                                      ? glass.share * reflectance + (1.0 - glass.share) * reflective
-                                      : Vec3d(reflectance);
-  const Vec3d refraction_weight = glass.share * (1.0 - reflectance) * glass.tint;  // black under TIR (F = 1)
+  // `coverage`: the alpha of a blended surface (1 otherwise), weighting everything it shows.
+  const Vec3d reflection_weight = coverage * (material.transmission_mix
+                                                  ? glass.share * reflectance + (1.0 - glass.share) * reflective
+                                                  : Vec3d(reflectance));
+  const Vec3d refraction_weight = coverage * glass.share * (1.0 - reflectance) * glass.tint;  // black under TIR (F = 1)
 
   const EffectsOptions& options = context.plan.options;
   Vec3d radiance(0.0);
@@ -344,6 +348,13 @@ void add_dielectric_rays(const ShadingContext& context, const SurfacePoint& surf
   trace(reflect_direction(direction, facing), reflection_weight, volume && !entering, false);
   if (transmitted) trace(*transmitted, refraction_weight, volume && entering, true);
   shadows.add_reflection(radiance);
+}
+
+// The alpha of a blend material at `hit`: per texel through the scene's alpha test when the
+// accel has one, else the material's constant.
+double blend_coverage(const ShadingContext& context, const Material& material, const Hit& hit) {
+  if (context.alpha) return context.alpha->alpha_at(hit.primitive, hit.u, hit.v);
+  return std::clamp(double(material.alpha), 0.0, 1.0);
 }
 
 // shade_hit's work for a hit, with the shadow queries left to `shadows`.
@@ -392,8 +403,21 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
       diffuse *= 1.0 - glass.share;
     }
   }
-  const Vec3d specular(material.specular);
-  const Vec3d reflective(material.reflective.value_or(material.specular));
+  Vec3d specular(material.specular);
+  Vec3d reflective(material.reflective.value_or(material.specular));
+  // A blend surface is seen with weight alpha, the ray going on through it for the rest
+  // (docs/alpha.md). The see-through ray is one level deeper; with no level left the surface is
+  // drawn fully.
+  const double coverage = material.alpha_mode == AlphaMode::blend && material.has_alpha() &&
+                                  depth < context.scene.settings.max_depth
+                              ? blend_coverage(context, material, hit)
+                              : 1.0;
+  if (coverage < 1.0) {
+    ambient *= coverage;
+    diffuse *= coverage;
+    specular *= coverage;
+    reflective *= coverage;
+  }
 
   if (context.trace)
     note(context, depth, "{} ray {}: hit {} {} at t = {:.9g}, point {}, shading normal {}, material {} '{}'",
@@ -411,8 +435,8 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
            to_string(rule));
   };
   // An emitter's radiance, else the seed's self-emission (seen from either side).
-  shadows.begin(material.emits_light ? emitted_radiance(context, material, material_id, surface, to_eye, texcoord)
-                                     : Vec3d(material.emission));
+  shadows.begin(coverage * (material.emits_light ? emitted_radiance(context, material, material_id, surface, to_eye, texcoord)
+                                                 : Vec3d(material.emission)));
   for (std::size_t j = 0; j < context.scene.lights.size(); ++j) {
     const Light& light = context.scene.lights[j];
     const LightPlan& light_plan = plan.lights[j];
@@ -501,7 +525,8 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
                          depth, path_seed, counts, shadows);
 
   if (depth < context.scene.settings.max_depth && glass.share > 0.0) {
-    add_dielectric_rays(context, surface, normal, direction, material, glass, reflective, depth, counts, throughput,
+    add_dielectric_rays(context, surface, normal, direction, material, glass,
+                        Vec3d(material.reflective.value_or(material.specular)), coverage, depth, counts, throughput,
                         path_seed, shadows, [&](SkipRule rule) { skip(rule, -1); });
   } else if (depth < context.scene.settings.max_depth) {
     const Vec3d next_throughput = throughput * reflective;
@@ -520,6 +545,17 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
       shadows.add_reflection(
           reflective * Vec3d(find_color(context, reflection_ray, depth + 1, counts, next_throughput, path_seed)));
     }
+  }
+
+  if (coverage < 1.0) {  // what lies behind a blended surface, straight on (coverage is 1 at max depth)
+    Ray onward;
+    onward.origin = offset_ray_origin(context.ray_offset, surface, direction);
+    onward.direction = ray.direction;
+    ++counts.see_through;
+    add_at(counts.see_through_per_depth, std::size_t(depth) + 1);
+    if (context.trace) note(context, depth, "  see-through, weight {:.6g}:", 1.0 - coverage);
+    shadows.add_reflection((1.0 - coverage) * Vec3d(find_color(context, onward, depth + 1, counts,
+                                                               throughput * (1.0 - coverage), path_seed)));
   }
 }
 

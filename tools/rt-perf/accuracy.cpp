@@ -17,6 +17,7 @@
 #include "rt/io/atomic_file.h"
 #include "rt/io/image_io.h"
 #include "rt/io/load_scene.h"
+#include "rt/render/alpha.h"
 #include "rt/render/render.h"
 
 namespace rt::perf {
@@ -67,7 +68,8 @@ Prepared prepare(const Scene& base, const RenderConfig& config) {
 // Builds the Embree scene and renders once, timing both.
 Rendered render_with(const Prepared& prepared, const RenderConfig& config, int threads) {
   const auto start = std::chrono::steady_clock::now();
-  const std::unique_ptr<Accel> accel = build_accel(AccelKind::embree, prepared.flat, config.accel);
+  const SceneAlpha alpha(prepared.scene, prepared.flat);
+  const std::unique_ptr<Accel> accel = build_accel(AccelKind::embree, prepared.flat, with_alpha(config.accel, alpha));
   Rendered rendered;
   rendered.build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   RenderOptions options;

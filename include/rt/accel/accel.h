@@ -59,6 +59,20 @@ enum class EmbreeKernel { native, watertight };
 // Options for building an Accel; the reference backends ignore the Embree ones.
 class EmbreeDevice;  // rt/accel/embree_accel.h
 
+// The scene's cut-outs and see-through surfaces (alpha), as the intersectors see them: which
+// triangles are tested, and whether a candidate hit at barycentrics (b1, b2) of triangle
+// `triangle` (FlatScene numbering) counts. Implemented by rt/render/alpha.h; thread-safe.
+class AlphaTest {
+ public:
+  virtual ~AlphaTest() = default;
+  // True when hits on `triangle` need the test (its material has an alpha below 1 somewhere).
+  virtual bool tested(std::uint32_t triangle) const = 0;
+  // Closest-hit queries: whether the hit counts (a surface that is there at that point).
+  virtual bool hit_counts(std::uint32_t triangle, float b1, float b2) const = 0;
+  // Occlusion (shadow) queries: whether the hit blocks the ray.
+  virtual bool blocks(std::uint32_t triangle, float b1, float b2) const = 0;
+};
+
 struct AccelOptions {
   // RTC_SCENE_FLAG_ROBUST: Embree's watertight (Pluecker) triangle test and conservative box tests.
   // On by default: it removes Embree's misses along shared edges for a few per cent of time (see
@@ -74,6 +88,10 @@ struct AccelOptions {
   // A device to build in, shared by the accels of a batch (make_embree_device); null: the accel
   // creates its own.
   std::shared_ptr<EmbreeDevice> embree_device;
+  // Alpha-tested triangles: Embree runs filter functions on a geometry of these alone, the
+  // reference tests them as it goes. Null (or no tested triangle): every surface is opaque and
+  // queries run exactly as without alpha. Must outlive the accel.
+  const AlphaTest* alpha_test = nullptr;
 };
 
 // Thread-safe after construction: many threads may query one Accel concurrently.
@@ -98,6 +116,9 @@ class Accel {
   virtual void occluded_coherent(std::span<const Ray> rays, std::span<std::uint8_t> blocked) const;
 
   virtual std::string_view name() const = 0;
+
+  // The alpha test this accel was built with (AccelOptions::alpha_test), null when none.
+  virtual const AlphaTest* alpha_test() const { return nullptr; }
 };
 
 // Builds the chosen backend over `scene`, which must outlive the result (Embree shares its

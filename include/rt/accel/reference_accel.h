@@ -49,13 +49,15 @@ enum class ReferenceTest { watertight, barycentric };
 // primitive index wins.
 class ReferenceAccel final : public Accel {
  public:
-  ReferenceAccel(const FlatScene& scene, ReferenceTest test);
+  // `alpha` (may be null) must outlive the accel.
+  ReferenceAccel(const FlatScene& scene, ReferenceTest test, const AlphaTest* alpha = nullptr);
 
   Hit intersect(const Ray& ray) const override;
   bool occluded(const Ray& ray) const override;
   std::string_view name() const override {
     return test_ == ReferenceTest::watertight ? "reference" : "reference-barycentric";
   }
+  const AlphaTest* alpha_test() const override { return alpha_; }
 
  private:
   struct TriangleD {
@@ -65,6 +67,7 @@ class ReferenceAccel final : public Accel {
                      TriangleHitD& hit) const;
 
   ReferenceTest test_;
+  const AlphaTest* alpha_ = nullptr;  // null unless some triangle is tested
   std::vector<TriangleD> triangles_;
   std::vector<FlatSphere> spheres_;
 };

@@ -17,6 +17,8 @@
 
 namespace rt {
 
+class SceneAlpha;  // rt/render/alpha.h
+
 // The ray budget: rays traced per kind, hits, rays skipped per rule and, when timing is on, the
 // time spent in intersection queries. Each render thread owns one; they are summed afterwards.
 // Per-depth and per-light vectors grow on demand (depth d: 0 = camera rays, d >= 1 = reflections).
@@ -25,11 +27,13 @@ struct RayCounts {
   std::uint64_t shadow = 0;      // towards point, spot and directional lights
   std::uint64_t reflection = 0;
   std::uint64_t refraction = 0;  // transmitted through dielectrics
+  std::uint64_t see_through = 0;  // on through blended (alpha) surfaces, unbent
   std::uint64_t area_light = 0;  // shadow rays towards samples on emitters
   std::vector<std::uint64_t> shadow_per_light;      // [j]: shadow rays traced towards light j
   std::vector<std::uint64_t> area_light_per_emitter;  // [e]: shadow rays towards samples of emitter e
   std::vector<std::uint64_t> reflection_per_depth;  // [d]: reflection rays of depth d (index 0 unused)
   std::vector<std::uint64_t> refraction_per_depth;  // [d]: refraction rays of depth d (index 0 unused)
+  std::vector<std::uint64_t> see_through_per_depth;  // [d]: see-through rays of depth d (index 0 unused)
   std::vector<std::uint64_t> hits_per_depth;        // [d]: rays of depth d that hit a surface
   std::array<std::uint64_t, kSkipRuleCount> skipped{};  // [SkipRule]: rays not traced, per rule
   // Timestamp-counter ticks (ShadingContext::time_queries only): closest-hit queries per ray depth,
@@ -40,7 +44,7 @@ struct RayCounts {
   std::vector<std::uint64_t> area_light_ticks_per_emitter;
   std::uint64_t loop_ticks = 0;
 
-  std::uint64_t total() const { return camera + shadow + reflection + refraction + area_light; }
+  std::uint64_t total() const { return camera + shadow + reflection + refraction + see_through + area_light; }
   // Counts one shadow query towards light slot `slot` (`ticks` of it when timed): slots
   // 0 .. light_count - 1 are Scene::lights, the next ones the emitters of EffectsPlan::area_lights.
   void add_shadow_query(std::size_t light_count, std::size_t slot) {  // inline: once per shadow ray
@@ -69,6 +73,9 @@ struct ShadingContext {
   // When set, find_color appends a line per ray, light and result (the --debug-pixel trace);
   // single-threaded use only.
   std::vector<std::string>* trace = nullptr;
+  // The scene's alpha (the accel's AlphaTest, rt/render/alpha.h): blended surfaces' alpha per
+  // texel. Null: a blend material's constant alpha.
+  const SceneAlpha* alpha = nullptr;
 };
 
 // The seed's FindColor for a ray whose origin and direction are world space:

@@ -33,6 +33,13 @@ struct Texture {
   bool empty() const { return path.empty(); }
 };
 
+// How a material's alpha (coverage) is used (glTF alphaMode; docs/alpha.md).
+enum class AlphaMode {
+  opaque,  // alpha ignored
+  mask,    // the surface exists where alpha >= alpha_cutoff; rays of every kind pass elsewhere
+  blend,   // seen with weight alpha, the rest of the ray going on straight (no bending)
+};
+
 // Phong / Blinn-Phong material of the seed's FindColor. Colours are linear RGB in [0, inf).
 struct Material {
   std::string name;
@@ -75,6 +82,18 @@ struct Material {
   // attenuation_distance scene units its colour is multiplied by attenuation_color. Infinite: none.
   Color attenuation_color{1.0f};
   float attenuation_distance = std::numeric_limits<float>::infinity();
+
+  // Alpha (glTF alphaMode with baseColorFactor's alpha and the base colour texture's alpha
+  // channel; OBJ/MTL d, Tr, map_d; native "alpha"): alpha = `alpha` x alpha_texture's alpha at the
+  // texel the hit falls in (no filtering, so cut-outs follow texel edges). An image without an
+  // alpha channel gives 1, or with alpha_from_grey its first channel (MTL map_d is a scalar map).
+  AlphaMode alpha_mode = AlphaMode::opaque;
+  float alpha = 1.0f;
+  float alpha_cutoff = 0.5f;  // mask only
+  Texture alpha_texture;
+  bool alpha_from_grey = false;
+  // Whether hits need an alpha test: a mask or blend mode with an alpha below 1 somewhere.
+  bool has_alpha() const { return alpha_mode != AlphaMode::opaque && (alpha < 1.0f || !alpha_texture.empty()); }
 
   // An area light: emits_light with a non-black emission (a black one lights nothing).
   bool is_emitter() const { return emits_light && emission != Color(0.0f); }

@@ -1,0 +1,80 @@
+#include "rt/render/alpha.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "io/oiio_module.h"
+
+namespace rt {
+
+namespace {
+
+// Texel index along one axis of `size` texels for texture coordinate `c`, under `wrap` (glTF's
+// sampler modes, OpenImageIO's conventions: texel i covers [i, i + 1) / size).
+int texel_index(float c, int size, TextureWrap wrap) {
+  const double x = std::floor(double(c) * size);
+  if (!std::isfinite(x)) return 0;
+  switch (wrap) {
+    case TextureWrap::clamp_to_edge: return int(std::clamp(x, 0.0, double(size - 1)));
+    case TextureWrap::mirrored_repeat: {
+      const double period = 2.0 * size;
+      const double m = x - period * std::floor(x / period);  // [0, 2 size)
+      return int(m < size ? m : period - 1.0 - m);
+    }
+    case TextureWrap::repeat: break;
+  }
+  return int(x - size * std::floor(x / size));
+}
+
+}  // namespace
+
+SceneAlpha::SceneAlpha(const Scene& scene, const FlatScene& flat) : flat_(flat), materials_(scene.materials.size()) {
+  for (std::size_t m = 0; m < scene.materials.size(); ++m) {
+    const Material& material = scene.materials[m];
+    if (!material.has_alpha()) continue;
+    MaterialAlpha& alpha = materials_[m];
+    alpha.mode = material.alpha_mode;
+    alpha.constant = std::clamp(material.alpha, 0.0f, 1.0f);
+    alpha.cutoff = material.alpha_cutoff;
+    alpha.wrap_s = material.alpha_texture.wrap_s;
+    alpha.wrap_t = material.alpha_texture.wrap_t;
+    if (!material.alpha_texture.empty() && !flat.texcoords.empty())
+      if (auto image = oiio_module().read_alpha(material.alpha_texture, material.alpha_from_grey)) {
+        alpha.width = image->width;
+        alpha.height = image->height;
+        alpha.texels = std::move(image->alpha);
+      }
+    // Nothing to test where alpha is 1 everywhere.
+    alpha.tested = alpha.constant < 1.0f || std::any_of(alpha.texels.begin(), alpha.texels.end(), [](float a) { return a < 1.0f; });
+  }
+  if (std::none_of(materials_.begin(), materials_.end(), [](const MaterialAlpha& m) { return m.tested; })) return;
+  for (std::uint32_t t = 0; t < flat.triangle_count() && !any_; ++t) any_ = materials_[flat.material_ids[t]].tested;
+}
+
+double SceneAlpha::alpha_at(std::uint32_t primitive, float b1, float b2) const {
+  const MaterialAlpha& alpha = materials_[flat_.material_of(primitive)];
+  if (alpha.width == 0 || flat_.is_sphere(primitive)) return alpha.constant;
+  // Texture space, float, interpolated as the shader interpolates the hit's coordinates.
+  const Vec3u tri = flat_.triangles[primitive];
+  const double b0 = 1.0 - double(b1) - double(b2);
+  const Vec2f uv = float(b0) * flat_.texcoords[tri.x] + float(double(b1)) * flat_.texcoords[tri.y] +
+                   float(double(b2)) * flat_.texcoords[tri.z];
+  const int x = texel_index(uv.x, alpha.width, alpha.wrap_s), y = texel_index(uv.y, alpha.height, alpha.wrap_t);
+  return std::clamp(double(alpha.constant) * alpha.texels[std::size_t(y) * std::size_t(alpha.width) + std::size_t(x)],
+                    0.0, 1.0);
+}
+
+bool SceneAlpha::hit_counts(std::uint32_t triangle, float b1, float b2) const {
+  calls_.fetch_add(1, std::memory_order_relaxed);
+  const MaterialAlpha& alpha = materials_[flat_.material_ids[triangle]];
+  const double a = alpha_at(triangle, b1, b2);
+  return alpha.mode == AlphaMode::mask ? a >= alpha.cutoff : a > 0.0;
+}
+
+bool SceneAlpha::blocks(std::uint32_t triangle, float b1, float b2) const {
+  calls_.fetch_add(1, std::memory_order_relaxed);
+  const MaterialAlpha& alpha = materials_[flat_.material_ids[triangle]];
+  return alpha_at(triangle, b1, b2) >= (alpha.mode == AlphaMode::mask ? alpha.cutoff : 0.5);
+}
+
+}  // namespace rt
