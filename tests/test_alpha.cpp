@@ -112,12 +112,7 @@ d 0.5
   for (const char* name : {"d", "tr", "map", "opaque", "glass"}) obj += fmt::format("usemtl {}\nf 1 2 3\n", name);
   rt_test::write_file(dir / "a.obj", obj);
   const rt::Scene scene = rt::load_scene(dir / "a.obj");
-  const auto material = [&](const std::string& name) -> const rt::Material& {
-    for (const rt::Material& m : scene.materials)
-      if (m.name == name) return m;
-    FAIL("no material " << name);
-    throw;
-  };
+  const auto material = [&](const std::string& name) -> const rt::Material& { return rt_test::material_named(scene, name); };
   CHECK(material("d").alpha_mode == rt::AlphaMode::blend);
   CHECK(material("d").alpha == 0.25f);
   CHECK(material("tr").alpha == Approx(0.25f));  // Tr is 1 - d

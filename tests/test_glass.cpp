@@ -262,12 +262,7 @@ illum 5
   for (const char* name : {"seven", "four", "six", "five"}) obj += fmt::format("usemtl {}\nf 1 2 3\n", name);
   rt_test::write_file(dir / "g.obj", obj);
   const rt::Scene scene = rt::load_scene(dir / "g.obj");
-  const auto material = [&](const std::string& name) -> const rt::Material& {
-    for (const rt::Material& m : scene.materials)
-      if (m.name == name) return m;
-    FAIL("no material " << name);
-    throw;
-  };
+  const auto material = [&](const std::string& name) -> const rt::Material& { return rt_test::material_named(scene, name); };
   CHECK(material("seven").transmission == rt::Color(0.5f, 0.6f, 0.7f));
   CHECK(material("seven").ior == 1.7f);
   CHECK(*material("seven").reflective == rt::Color(0.0f));  // Fresnel, not Ks, weights the reflection

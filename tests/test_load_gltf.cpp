@@ -385,12 +385,7 @@ TEST_CASE("gltf: KHR_materials_transmission, _ior and _volume make glass, thin w
   add_material({{"KHR_materials_ior", {{"ior", 2.0}}}});  // opaque: only the reflectance changes
   const std::string path = builder.write(dir, "glass");
   const rt::Scene scene = load(path);
-  const auto material = [&](const std::string& name) -> const rt::Material& {
-    for (const rt::Material& m : scene.materials)
-      if (m.name == name) return m;
-    FAIL("no material " << name);
-    throw;
-  };
+  const auto material = [&](const std::string& name) -> const rt::Material& { return rt_test::material_named(scene, name); };
   const rt::Material& thin = material("material 0");
   CHECK(thin.is_dielectric());
   CHECK(thin.transmission_mix);

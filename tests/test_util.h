@@ -13,6 +13,7 @@
 #include <memory>
 #include <sstream>
 #include <stdexcept>
+#include <stdexcept>
 #include <string>
 #include <system_error>
 #include <utility>
@@ -118,6 +119,13 @@ inline RtRun run_in(const TempDir& cwd, const std::string& executable, const std
 }
 
 inline RtRun run_rt_in(const TempDir& cwd, const std::string& args) { return run_in(cwd, RT_EXECUTABLE, args); }
+
+// The material of `scene` called `name`; throws when there is none.
+inline const rt::Material& material_named(const rt::Scene& scene, const std::string& name) {
+  for (const rt::Material& m : scene.materials)
+    if (m.name == name) return m;
+  throw std::runtime_error("no material '" + name + "'");
+}
 
 // A small valid native scene, 32x24: one red sphere under one directional light. `extra` is
 // spliced in as the first top-level keys (e.g. R"("output": "x.png",)").

@@ -361,7 +361,10 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
                        {"render", result.seconds}, {"write", write_s},   {"total", total_s}};
     write_text_file_atomically(args.stats_path, stats.dump(2) + "\n");
   }
-  if (args.explain) fmt::print("{}", explain_render(result, scene));
+  if (args.explain) {
+    fmt::print("{}", explain_render(result, scene));
+    if (alpha.any()) fmt::print("  alpha tests          {:>8} (filter calls on the alpha-tested triangles)\n", alpha.calls());
+  }
   if (!args.quiet)
     fmt::print(
         "{}: {}x{}{}, {}, {}, {}{}, {:.3f} s render, {:.3f} s total, {:.2f} Mrays/s ({}, {})\n", output,
@@ -505,6 +508,13 @@ std::string glass_text(const Material& m) {
   return text;
 }
 
+// ", mask at 0.5, alpha 1 x texture T" for `rt info`; empty for an opaque material.
+std::string alpha_text(const Material& m) {
+  if (!m.has_alpha()) return "";
+  return fmt::format(", {} alpha {}{}", m.alpha_mode == AlphaMode::mask ? fmt::format("mask at {}", m.alpha_cutoff) : "blend",
+                     m.alpha, m.alpha_texture.empty() ? "" : " x texture " + m.alpha_texture.path);
+}
+
 }  // namespace
 
 int run_info(const std::string& scene_path, const GltfOptions& gltf, const SceneOptions& scene_options,
@@ -532,9 +542,9 @@ int run_info(const std::string& scene_path, const GltfOptions& gltf, const Scene
                bounds.lo.z, bounds.hi.x, bounds.hi.y, bounds.hi.z);
   fmt::print("materials   {}\n", scene.materials.size());
   for (const Material& m : scene.materials)
-    fmt::print("  {:<16} diffuse ({}, {}, {}), specular ({}, {}, {}), shininess {}{}{}\n", m.name, m.diffuse.r,
+    fmt::print("  {:<16} diffuse ({}, {}, {}), specular ({}, {}, {}), shininess {}{}{}{}\n", m.name, m.diffuse.r,
                m.diffuse.g, m.diffuse.b, m.specular.r, m.specular.g, m.specular.b, m.shininess,
-               m.diffuse_texture.empty() ? "" : ", texture " + m.diffuse_texture.path, glass_text(m));
+               m.diffuse_texture.empty() ? "" : ", texture " + m.diffuse_texture.path, glass_text(m), alpha_text(m));
   fmt::print("lights      {}\n", scene.lights.size());
   for (const Light& l : scene.lights) {
     if (l.is_directional())

@@ -254,6 +254,12 @@ std::vector<std::string> describe_plan(const EffectsPlan& plan, const Scene& sce
     lines.push_back(fmt::format("reflections off: {}", scene.settings.max_depth == 0 ? "max depth 0"
                                                                                        : "no material reflects"));
   }
+  std::size_t masked = 0, blended = 0;
+  for (const Material& m : scene.materials)
+    if (m.has_alpha()) ++(m.alpha_mode == AlphaMode::mask ? masked : blended);
+  if (masked + blended > 0)
+    lines.push_back(fmt::format("alpha       on: {} of {} materials cut out (mask), {} blended; only their triangles "
+                                "are alpha-tested", masked, scene.materials.size(), blended));
   std::size_t no_specular = 0;
   for (const MaterialPlan& m : plan.materials) no_specular += !m.specular;
   lines.push_back(fmt::format("terms       specular highlight skipped for {} of {} materials (black specular)",

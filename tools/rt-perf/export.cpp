@@ -134,6 +134,7 @@ int run_export(const ExportArgs& args) {
     json["ior"] = material.ior;
     json["thin_walled"] = material.thin_walled;
     json["attenuation_color"] = to_json(material.attenuation_color);
+    json["alpha"] = material.has_alpha() ? Json(material.alpha_mode == AlphaMode::mask ? "mask" : "blend") : Json(nullptr);
     json["attenuation_distance"] =
         std::isfinite(material.attenuation_distance) ? Json(material.attenuation_distance) : Json(nullptr);
     json["diffuse_texture"] = texture_json(material.diffuse_texture);
