@@ -12,6 +12,7 @@
 #include <vector>
 
 #include <fmt/format.h>
+#include <nlohmann/json.hpp>
 
 #include "rt/accel/accel.h"
 #include "rt/flatten/flatten.h"
@@ -271,4 +272,34 @@ illum 5
   CHECK(material("six").ior == 1.5f);                       // Ni 0: "unset"
   CHECK_FALSE(material("five").is_dielectric());
   CHECK(*material("five").reflective == rt::Color(0.9f));
+}
+
+TEST_CASE("rt render --stats and --explain count refraction rays per depth, and pruning leaves glass unchanged",
+          "[glass][cli]") {
+  rt_test::TempDir dir;
+  const std::string scene = std::string(RT_SOURCE_DIR) + "/scenes/glass-ball.json";
+  const rt_test::RtRun run =
+      rt_test::run_rt_in(dir, "render '" + scene + "' --width 64 --height 48 -q -o pruned.ppm --stats stats.json --explain");
+  REQUIRE(run.status == 0);
+  const nlohmann::json stats = nlohmann::json::parse(rt_test::read_file(dir / "stats.json"));
+  const std::uint64_t refraction = stats.at("rays").at("refraction");
+  CHECK(refraction > 0);
+  std::uint64_t per_depth = 0, reflection_per_depth = 0;
+  for (const auto& row : stats.at("ray_budget").at("reflection")) {
+    per_depth += row.at("refraction").get<std::uint64_t>();
+    reflection_per_depth += row.at("reflection").get<std::uint64_t>();
+    CHECK(row.at("rays").get<std::uint64_t>() ==
+          row.at("reflection").get<std::uint64_t>() + row.at("refraction").get<std::uint64_t>() +
+              row.at("see_through").get<std::uint64_t>());
+  }
+  CHECK(per_depth == refraction);
+  CHECK(reflection_per_depth == stats.at("rays").at("reflection").get<std::uint64_t>());
+  CHECK(stats.at("rays").at("total").get<std::uint64_t>() ==
+        stats.at("rays").at("camera").get<std::uint64_t>() + stats.at("rays").at("shadow").get<std::uint64_t>() +
+            stats.at("rays").at("reflection").get<std::uint64_t>() + refraction);
+  CHECK_THAT(run.out, Catch::Matchers::Contains("refraction  on: 1 of 3 materials are glass") &&
+                          Catch::Matchers::Contains("of them refracted"));
+  // Every ray pruned (black weights, zero terms) would have added exactly 0.
+  REQUIRE(rt_test::run_rt_in(dir, "render '" + scene + "' --width 64 --height 48 -q -o full.ppm --no-prune").status == 0);
+  CHECK(rt_test::read_file(dir / "pruned.ppm") == rt_test::read_file(dir / "full.ppm"));
 }
