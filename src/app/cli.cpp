@@ -126,6 +126,20 @@ int run_cli(int argc, char** argv) {
         ->check(whole_number_in(1, kMaxImageSide));
     command->add_option("--max-depth", args.max_depth, "Reflection depth (0 = no reflections)")
         ->check(whole_number_in(0, kMaxReflectionDepth));
+    command->add_option_function<std::string>(
+              "--display", [&args](const std::string& text) { args.display = parse_display_encoding(text); },
+              "How 8-bit outputs and the window encode the linear image: srgb (what viewers assume; the default "
+              "for glTF and OBJ) or linear (byte = floor(255 c), the CSE167x course's; the default for .test and "
+              "native scenes). EXR and HDR stay linear")
+        ->check(one_of({"linear", "srgb"}));
+    command->add_option("--exposure", args.exposure_ev, "Scale the image by 2^EV before the tone map and the encoding")
+        ->check(number_in(-64.0, 64.0))
+        ->type_name("EV");
+    command->add_option_function<std::string>(
+              "--tonemap", [&args](const std::string& text) { args.tonemap = parse_tonemap(text); },
+              "Tone map before the encoding: none (clip to 1), aces (Narkowicz's ACES fit) or pbr-neutral "
+              "(Khronos PBR Neutral: colours up to 0.76 unchanged, highlights compressed)")
+        ->check(one_of({"none", "aces", "pbr-neutral"}));
     command->add_option("--spp", args.spp,
                         "Samples per pixel: 1 = the pixel centre (the seed's camera); N > 1 = stratified jittered "
                         "samples averaged with a box filter (anti-aliasing), the same image for any thread count")

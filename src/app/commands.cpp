@@ -187,7 +187,8 @@ RenderOptions render_options(const RenderArgs& args, const BatchContext& batch) 
 // The scene at `scene_path` (empty: the default scene) with the command line's image settings and
 // scene options applied, validated.
 Scene load_for_render(const RenderArgs& args, const std::string& scene_path, LoadReport& report) {
-  return load_scene_for_command(scene_path, args.gltf, {args.width, args.height, args.max_depth}, args.scene, report);
+  return load_scene_for_command(scene_path, args.gltf, {args.width, args.height, args.max_depth, args.display, args.exposure_ev, args.tonemap},
+                                args.scene, report);
 }
 
 // --crop, --tile and --debug-pixel against the image size, which is known once the scene is loaded.
@@ -303,7 +304,7 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
                                          result.tiles_finished(), result.tile_count());
     if (args.partial_output) {
       const std::string partial = partial_output_path(output);
-      write_image(result.image, partial, header);
+      write_image(result.image, partial, header, scene.settings.display);
       fmt::print(stderr, "{}; the finished tiles are in {} (unfinished tiles black); {} not written\n", what, partial,
                  output);
     } else {
@@ -319,7 +320,7 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
                result.first_non_finite_pixel->first, result.first_non_finite_pixel->second);
 
   phase_start = Clock::now();
-  write_image(result.image, output, header);
+  write_image(result.image, output, header, scene.settings.display);
   const double write_s = seconds_since(phase_start);
   const double total_s = seconds_since(start);
   const double mrays = result.rays.total() / std::max(result.seconds, 1e-9) / 1e6;
@@ -483,8 +484,9 @@ int run_view(const ViewArgs& args) {
 int run_merge(const std::vector<std::string>& paths, const std::string& output, bool quiet) {
   check_output_path(output);
   const auto start = Clock::now();
-  const Image image = merge_regions(paths);
-  write_image(image, output);
+  DisplayTransform display;
+  const Image image = merge_regions(paths, &display);
+  write_image(image, output, {}, display);
   if (!quiet)
     fmt::print("{}: {}x{} from {} region file(s), {:.3f} s\n", output, image.width, image.height, paths.size(),
                seconds_since(start));
@@ -528,9 +530,9 @@ int run_info(const std::string& scene_path, const GltfOptions& gltf, const Scene
   const Bounds3d bounds = flat_bounds(flat);
   const Camera& c = scene.camera;
   fmt::print("scene       {}\n", scene.source);
-  fmt::print("image       {}x{}, max depth {}, background ({}, {}, {})\n", scene.settings.width,
+  fmt::print("image       {}x{}, max depth {}, background ({}, {}, {}), display {}\n", scene.settings.width,
              scene.settings.height, scene.settings.max_depth, scene.settings.background.r,
-             scene.settings.background.g, scene.settings.background.b);
+             scene.settings.background.g, scene.settings.background.b, to_string(scene.settings.display));
   fmt::print("camera      eye ({}, {}, {}), target ({}, {}, {}), up ({}, {}, {}), fovy {} deg\n", c.eye.x, c.eye.y,
              c.eye.z, c.target.x, c.target.y, c.target.z, c.up.x, c.up.y, c.up.z, c.fovy_degrees);
   fmt::print("graph       {}, {}\n", count_of(scene.nodes.size(), "node"), count_of(models, "model"));

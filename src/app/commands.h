@@ -29,6 +29,9 @@ struct RenderArgs {
   bool skip_existing = false;
   RegionRequest region;
   std::optional<int> width, height, max_depth;
+  std::optional<DisplayEncoding> display;  // --display, --exposure, --tonemap (docs/display.md)
+  std::optional<double> exposure_ev;
+  std::optional<ToneMap> tonemap;
   std::string accel = "embree";
   std::string embree_robust = "on";
   std::string embree_quality = "medium";

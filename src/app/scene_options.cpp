@@ -166,6 +166,9 @@ void apply_image_overrides(const ImageOverrides& image, Scene& scene) {
   if (image.width) settings.width = *image.width;
   if (image.height) settings.height = *image.height;
   if (image.max_depth) settings.max_depth = *image.max_depth;
+  if (image.display) settings.display.encoding = *image.display;
+  if (image.exposure_ev) settings.display.exposure_ev = *image.exposure_ev;
+  if (image.tonemap) settings.display.tonemap = *image.tonemap;
 }
 
 Scene load_scene_for_command(const std::string& path, const GltfOptions& gltf, const ImageOverrides& image,

@@ -36,10 +36,14 @@ std::uint8_t quantize_8bit(float c) {
   return static_cast<std::uint8_t>(std::floor(255.0f * clamped));
 }
 
-std::vector<std::uint8_t> to_rgb8(const Image& image) {
+std::vector<std::uint8_t> to_rgb8(const Image& image, const DisplayTransform& display) {
   std::vector<std::uint8_t> bytes(image.pixels.size() * 3);
-  for (std::size_t i = 0; i < image.pixels.size(); ++i)
-    for (int c = 0; c < 3; ++c) bytes[3 * i + c] = quantize_8bit(image.pixels[i][c]);
+  if (display == DisplayTransform{}) {
+    for (std::size_t i = 0; i < image.pixels.size(); ++i)
+      for (int c = 0; c < 3; ++c) bytes[3 * i + c] = quantize_8bit(image.pixels[i][c]);
+  } else {
+    for (std::size_t i = 0; i < image.pixels.size(); ++i) encode_8bit(image.pixels[i], display, &bytes[3 * i]);
+  }
   return bytes;
 }
 
@@ -170,10 +174,17 @@ void encode_and_write(const std::string& path, const Image& image, bool as_float
 
 }  // namespace
 
-void write_image(const Image& image, const std::string& path, const ImageHeader& header) {
+void write_image(const Image& image, const std::string& path, const ImageHeader& header,
+                 const DisplayTransform& display) {
   check_image_format(path);
   const bool as_float = writes_float(path);
-  encode_and_write(path, image, as_float, as_float ? std::vector<std::uint8_t>{} : to_rgb8(image), header);
+  if (!as_float) {
+    encode_and_write(path, image, false, to_rgb8(image, display), header);
+    return;
+  }
+  ImageHeader recorded = header;
+  recorded.attributes.emplace_back(kDisplayAttribute, to_string(display));
+  encode_and_write(path, image, true, {}, recorded);
 }
 
 void write_rgb8(int width, int height, const std::vector<std::uint8_t>& rgb8, const std::string& path) {

@@ -763,6 +763,8 @@ void GltfReader::read_lights(const std::vector<Placed>& placed, Scene& scene) {
 Scene GltfReader::read() {
   Scene scene;
   scene.source = path_;
+  // glTF colours are linear and its viewers show them sRGB-encoded (docs/display.md).
+  scene.settings.display.encoding = DisplayEncoding::srgb;
   for (std::size_t i = 0; i < gltf_.extensionsRequired.size(); ++i) {
     const std::string& name = gltf_.extensionsRequired[i];
     if (name != "KHR_lights_punctual" && name != "KHR_materials_emissive_strength" && name != "KHR_texture_transform" &&

@@ -209,6 +209,8 @@ Scene load_obj_scene(const std::string& path, LoadReport* report, const ObjLoadO
   const ObjFile obj = read_obj(path, options);
   Scene scene;
   scene.source = path;
+  // OBJ/MTL colours are linear as renderers read them, and 8-bit files are viewed as sRGB (docs/display.md).
+  scene.settings.display.encoding = DisplayEncoding::srgb;
   for (const tinyobj::material_t& m : obj.materials)
     scene.materials.push_back(to_material(m, fs::path(path).parent_path()));
   std::optional<std::uint32_t> default_material;

@@ -53,6 +53,7 @@ class SceneReader {
   Color read_color(const json& value, const std::string& where) const;
 
   void read_settings(const json& document, Scene& scene) const;
+  DisplayTransform read_display(const json& value, const std::string& where) const;
   Camera read_camera(const json& value, const std::string& where) const;
   Material read_material(const json& value, const std::string& where, const std::string& name) const;
   Light read_light(const json& value, const std::string& where) const;
@@ -148,6 +149,40 @@ void SceneReader::read_settings(const json& document, Scene& scene) const {
   if (document.contains("max_depth")) settings.max_depth = read_int(document["max_depth"], "/max_depth", 0, kMaxReflectionDepth);
   if (document.contains("background")) settings.background = read_color(document["background"], "/background");
   if (document.contains("output")) settings.output = read_string(document["output"], "/output");
+  if (document.contains("display")) settings.display = read_display(document["display"], "/display");
+}
+
+// "display": "linear" or "srgb", or { "encoding": ..., "exposure": EV, "tonemap": ... }
+// (docs/display.md).
+DisplayTransform SceneReader::read_display(const json& value, const std::string& where) const {
+  DisplayTransform display;
+  const auto encoding = [&](const json& name, const std::string& at) {
+    try {
+      return parse_display_encoding(read_string(name, at));
+    } catch (const InputError&) {
+      fail(at, fmt::format("'{}' is not linear or srgb", name.get<std::string>()));
+    }
+  };
+  if (value.is_string()) {
+    display.encoding = encoding(value, where);
+    return display;
+  }
+  require_object(value, where);
+  check_keys(value, where, {"encoding", "exposure", "tonemap"});
+  if (value.contains("encoding")) display.encoding = encoding(value["encoding"], child(where, "encoding"));
+  if (value.contains("exposure")) {
+    display.exposure_ev = read_number(value["exposure"], child(where, "exposure"));
+    if (!(std::abs(display.exposure_ev) <= 64.0)) fail(child(where, "exposure"), "exposure must be within -64..64 EV");
+  }
+  if (value.contains("tonemap")) {
+    const std::string name = read_string(value["tonemap"], child(where, "tonemap"));
+    try {
+      display.tonemap = parse_tonemap(name);
+    } catch (const InputError&) {
+      fail(child(where, "tonemap"), fmt::format("'{}' is not none, aces or pbr-neutral", name));
+    }
+  }
+  return display;
 }
 
 Camera SceneReader::read_camera(const json& value, const std::string& where) const {
@@ -428,8 +463,8 @@ std::uint32_t SceneReader::read_node(const json& value, const std::string& where
 
 Scene SceneReader::read(const json& document) {
   require_object(document, "");
-  check_keys(document, "", {"image", "max_depth", "background", "output", "camera", "materials", "geometries",
-                            "lights", "nodes"});
+  check_keys(document, "", {"image", "max_depth", "background", "output", "display", "camera", "materials",
+                            "geometries", "lights", "nodes"});
   Scene scene;
   scene.source = path_;
   read_settings(document, scene);

@@ -47,7 +47,7 @@ std::pair<std::set<int>, int> tile_numbers(const std::vector<RegionFile>& files)
 
 }  // namespace
 
-Image merge_regions(const std::vector<std::string>& paths) {
+Image merge_regions(const std::vector<std::string>& paths, DisplayTransform* display) {
   if (paths.empty()) throw InputError("rt merge: no region files given");
   std::vector<RegionFile> files;
   Image full;
@@ -59,7 +59,7 @@ Image merge_regions(const std::vector<std::string>& paths) {
     file.region = file.header.data_window.value_or(full_region(part.width, part.height));
     if (!files.empty()) {
       const RegionFile& first = files.front();
-      for (const char* name : {kSceneAttribute, kSettingsAttribute, kVersionAttribute}) {
+      for (const char* name : {kSceneAttribute, kSettingsAttribute, kVersionAttribute, kDisplayAttribute}) {
         const std::string mine = attribute(file.header, name), theirs = attribute(first.header, name);
         if (mine != theirs)
           throw InputError(path, "", fmt::format("{} is '{}' but '{}' in {}: the regions come from different renders",
@@ -97,6 +97,10 @@ Image merge_regions(const std::vector<std::string>& paths) {
   // No overlaps: the parts cover the image exactly once when their areas add up to it.
   std::uint64_t covered = 0;
   for (const RegionFile& file : files) covered += file.region.pixel_count();
+  if (display) {
+    const std::string recorded = attribute(files.front().header, kDisplayAttribute);
+    *display = recorded.empty() ? DisplayTransform{} : parse_display_transform(recorded);
+  }
   if (covered == full_region(full.width, full.height).pixel_count()) return full;
   std::string missing;
   if (const auto [present, n] = tile_numbers(files); n > 0) {

@@ -55,8 +55,10 @@ struct Frame {
   bool complete = false;            // the full render (every sample) is in
   std::string status = "starting";  // progress and speed, for the title bar
   std::string error;                // a render that threw
+  DisplayTransform display;         // how rgb8 encodes colors, as rt render's 8-bit files
 
-  Frame(int width, int height) : colors(width, height), rgb8(colors.pixels.size() * 3, 0), dirty_y1(height) {}
+  Frame(int width, int height, const DisplayTransform& display_transform)
+      : colors(width, height), rgb8(colors.pixels.size() * 3, 0), dirty_y1(height), display(display_transform) {}
 
   // Marks rows [y0, y1) for the next upload.
   void touch(int y0, int y1) {
@@ -72,7 +74,7 @@ struct Frame {
   void set(int x, int y, const Color& c) {
     colors.at(x, y) = c;
     std::uint8_t* bytes = &rgb8[(std::size_t(y) * std::size_t(colors.width) + std::size_t(x)) * 3];
-    for (int k = 0; k < 3; ++k) bytes[k] = quantize_8bit(c[k]);
+    encode_8bit(c, display, bytes);
   }
 };
 
@@ -411,7 +413,7 @@ int run_viewer(const Scene& scene, const FlatScene& flat, const Accel& accel, co
 
   int status = 0;
   {
-    Frame frame(width, height);
+    Frame frame(width, height, scene.settings.display);
     ImageProgram program(width, height);
     Input input;
     input.camera = scene.camera;
@@ -458,7 +460,7 @@ int run_viewer(const Scene& scene, const FlatScene& flat, const Accel& accel, co
             std::lock_guard lock(frame.mutex);
             shown = frame.colors;
           }
-          write_image(shown, options.save_path);
+          write_image(shown, options.save_path, {}, scene.settings.display);
           fmt::print(stderr, "rt view: saved {}{}\n", options.save_path, complete ? "" : " (render not finished)");
         } catch (const std::exception& failure) {
           fmt::print(stderr, "rt view: error: {}\n", printable_line(failure.what()));

@@ -104,7 +104,10 @@ int run_accuracy(const AccuracyArgs& args) {
     throw InputError(args.out, "", "cannot create the output directory" + (error ? ": " + error.message() : ""));
 
   Scene scene = args.scene.empty() ? make_default_scene() : load_scene(args.scene);
-  apply_image_overrides({args.width, args.height, std::nullopt}, scene);
+  ImageOverrides image;
+  image.width = args.width;
+  image.height = args.height;
+  apply_image_overrides(image, scene);
   validate_scene(scene);
   const int scene_depth = scene.settings.max_depth;
   const FlatScene flat = flatten_scene(scene);

@@ -64,7 +64,11 @@ Json texture_json(const Texture& texture) { return texture.empty() ? Json(nullpt
 // The scene as `rt render` loads it: file or built-in default, command-line image size and depth,
 // then the scene flags, validated.
 Scene load_as_rt_render(const ExportArgs& args, LoadReport& report) {
-  return load_scene_for_command(args.scene, args.gltf, {args.width, args.height, args.max_depth}, args.scene_options,
+  ImageOverrides image;
+  image.width = args.width;
+  image.height = args.height;
+  image.max_depth = args.max_depth;
+  return load_scene_for_command(args.scene, args.gltf, image, args.scene_options,
                                 report);
 }
 

@@ -41,9 +41,13 @@ void add_scene_options(CLI::App& app, SceneOptions& options);
 // the flag when a colour is negative, a direction zero or the resulting camera unusable.
 void apply_scene_options(const SceneOptions& options, const LoadReport& report, Scene& scene);
 
-// Image settings the command line overrides (--width, --height, --max-depth); nullopt: the scene's.
+// Image settings the command line overrides (--width, --height, --max-depth, --display,
+// --exposure, --tonemap); nullopt: the scene's.
 struct ImageOverrides {
   std::optional<int> width, height, max_depth;
+  std::optional<DisplayEncoding> display;
+  std::optional<double> exposure_ev;
+  std::optional<ToneMap> tonemap;
 };
 
 // Applies the overrides to a loaded scene. With only one of width and height given, the other

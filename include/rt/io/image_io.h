@@ -8,6 +8,7 @@
 #include <utility>
 #include <vector>
 
+#include "rt/core/display.h"
 #include "rt/core/image.h"
 #include "rt/render/region.h"
 
@@ -17,8 +18,9 @@ namespace rt {
 // (The CSE167x references were made this way; round() would disagree on most pixels.)
 std::uint8_t quantize_8bit(float c);
 
-// The image as interleaved 8-bit RGB, rows top to bottom, quantised by quantize_8bit.
-std::vector<std::uint8_t> to_rgb8(const Image& image);
+// The image as interleaved 8-bit RGB, rows top to bottom, through `display` (the default,
+// linear: quantize_8bit).
+std::vector<std::uint8_t> to_rgb8(const Image& image, const DisplayTransform& display = {});
 
 // True for extensions written as linear float (.exr, .hdr); everything else is 8-bit.
 bool writes_float(const std::string& path);
@@ -44,12 +46,19 @@ struct ImageHeader {
   std::vector<std::pair<std::string, std::string>> attributes;  // names start with "rt:"
 };
 
+// The attribute of float files that names the display transform of their 8-bit renditions
+// (to_string(DisplayTransform)); rt merge applies it.
+inline constexpr const char* kDisplayAttribute = "rt:display";
+
 // Writes `image` to `path` (png, jpg, exr, hdr, tif, bmp, ppm and any other format OIIO writes).
 // The file is written next to the destination under a temporary name and renamed into place,
 // so a failed write never leaves a partial file and never touches an existing one. EXR keeps
 // `header` (other formats may drop it). Throws InputError for an unknown extension, RuntimeError
 // for I/O failures.
-void write_image(const Image& image, const std::string& path, const ImageHeader& header = {});
+// 8-bit formats are encoded through `display`; float formats stay linear and record it as the
+// "rt:display" attribute (EXR).
+void write_image(const Image& image, const std::string& path, const ImageHeader& header = {},
+                 const DisplayTransform& display = {});
 
 // Writes interleaved 8-bit RGB (rows top to bottom, width * height * 3 bytes) in any 8-bit format
 // write_image writes, through the same encoders: write_rgb8(w, h, to_rgb8(image), path) writes the

@@ -4,6 +4,7 @@
 #include <string>
 #include <vector>
 
+#include "rt/core/display.h"
 #include "rt/core/image.h"
 
 namespace rt {
@@ -20,6 +21,8 @@ inline constexpr const char* kPartAttribute = "rt:part";  // "tile K/N" or "crop
 // scene, with other settings, by another rt or at another image size than the first, lies outside
 // the image or overlaps another (naming both); or naming the first pixel no file covers (and, for
 // --tile parts, the missing tile numbers).
-Image merge_regions(const std::vector<std::string>& paths);
+// `display`, when given, receives the display transform the regions record (rt:display; linear
+// when absent), for the merged image's 8-bit encoding.
+Image merge_regions(const std::vector<std::string>& paths, DisplayTransform* display = nullptr);
 
 }  // namespace rt

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "rt/core/display.h"
 #include "rt/core/math.h"
 
 namespace rt {
@@ -186,6 +187,9 @@ struct RenderSettings {
   int max_depth = 5;        // 0 = primary hit only; reflections recurse while depth < max_depth
   Color background{0.0f};   // radiance of rays that miss everything
   std::string output;       // default output file name; empty means "<scene stem>.png"
+  // How 8-bit outputs encode the linear image: sRGB for glTF and OBJ, the course's linear
+  // floor(255 c) for .test, the native format's "display" key (linear by default).
+  DisplayTransform display;
 };
 
 struct Scene {
