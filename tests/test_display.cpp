@@ -114,6 +114,9 @@ TEST_CASE("display: glTF and OBJ default to sRGB, .test and native scenes to lin
   CHECK_THAT(error(R"("display": "gamma",)"), Contains("/display: 'gamma' is not linear or srgb"));
   CHECK_THAT(error(R"("display": { "tonemap": "reinhard" },)"), Contains("/display/tonemap: 'reinhard'"));
   CHECK_THAT(error(R"("display": { "exposure": 100 },)"), Contains("/display/exposure"));
+  CHECK_THAT(error(R"("display": 5,)"), Contains("/display"));
+  CHECK_THAT(error(R"("display": { "encoding": [1] },)"), Contains("/display/encoding"));
+  CHECK_THAT(error(R"("display": { "gamma": 2.2 },)"), Contains("gamma"));
 }
 
 TEST_CASE("display: rt render applies --display, --exposure and --tonemap to 8-bit files and records them in EXR",

@@ -156,11 +156,12 @@ void SceneReader::read_settings(const json& document, Scene& scene) const {
 // (docs/display.md).
 DisplayTransform SceneReader::read_display(const json& value, const std::string& where) const {
   DisplayTransform display;
-  const auto encoding = [&](const json& name, const std::string& at) {
+  const auto encoding = [&](const json& value_at, const std::string& at) {
+    const std::string name = read_string(value_at, at);
     try {
-      return parse_display_encoding(read_string(name, at));
+      return parse_display_encoding(name);
     } catch (const InputError&) {
-      fail(at, fmt::format("'{}' is not linear or srgb", name.get<std::string>()));
+      fail(at, fmt::format("'{}' is not linear or srgb", name));
     }
   };
   if (value.is_string()) {
