@@ -125,9 +125,7 @@ bool intersect_sphere(const Vec3d& origin, const Vec3d& direction, double tnear,
 }
 
 ReferenceAccel::ReferenceAccel(const FlatScene& scene, ReferenceTest test, const AlphaTest* alpha)
-    : test_(test), spheres_(scene.spheres) {
-  for (std::uint32_t t = 0; alpha && t < scene.triangle_count() && !alpha_; ++t)
-    if (alpha->tested(t)) alpha_ = alpha;
+    : test_(test), alpha_(alpha), spheres_(scene.spheres) {
   triangles_.reserve(scene.triangle_count());
   for (const Vec3u& tri : scene.triangles)
     triangles_.push_back({Vec3d(scene.positions[tri.x]), Vec3d(scene.positions[tri.y]), Vec3d(scene.positions[tri.z])});

@@ -187,8 +187,8 @@ RenderOptions render_options(const RenderArgs& args, const BatchContext& batch) 
 // The scene at `scene_path` (empty: the default scene) with the command line's image settings and
 // scene options applied, validated.
 Scene load_for_render(const RenderArgs& args, const std::string& scene_path, LoadReport& report) {
-  return load_scene_for_command(scene_path, args.gltf, {args.width, args.height, args.max_depth, args.display, args.exposure_ev, args.tonemap},
-                                args.scene, report);
+  const ImageOverrides image{args.width, args.height, args.max_depth, args.display, args.exposure_ev, args.tonemap};
+  return load_scene_for_command(scene_path, args.gltf, image, args.scene, report);
 }
 
 // --crop, --tile and --debug-pixel against the image size, which is known once the scene is loaded.

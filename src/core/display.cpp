@@ -48,13 +48,15 @@ std::uint8_t byte_of(double v, DisplayEncoding encoding) {
 
 }  // namespace
 
+std::uint8_t quantize_8bit(float c) {
+  // NaN fails both comparisons and maps to 0.
+  const float clamped = c > 0.0f ? std::min(c, 1.0f) : 0.0f;
+  return static_cast<std::uint8_t>(std::floor(255.0f * clamped));
+}
+
 void encode_8bit(const Color& c, const DisplayTransform& display, std::uint8_t out[3]) {
   if (display == DisplayTransform{}) {
-    // The course's quantisation exactly as before (float arithmetic): floor(255 c) of the clamped value.
-    for (int k = 0; k < 3; ++k) {
-      const float clamped = c[k] > 0.0f ? std::min(c[k], 1.0f) : 0.0f;
-      out[k] = static_cast<std::uint8_t>(std::floor(255.0f * clamped));
-    }
+    for (int k = 0; k < 3; ++k) out[k] = quantize_8bit(c[k]);
     return;
   }
   Vec3d v = Vec3d(c) * std::exp2(display.exposure_ev);

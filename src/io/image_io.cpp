@@ -30,20 +30,9 @@ std::string lower_extension(const std::string& path) {
 
 }  // namespace
 
-std::uint8_t quantize_8bit(float c) {
-  // NaN fails both comparisons and maps to 0.
-  const float clamped = c > 0.0f ? std::min(c, 1.0f) : 0.0f;
-  return static_cast<std::uint8_t>(std::floor(255.0f * clamped));
-}
-
 std::vector<std::uint8_t> to_rgb8(const Image& image, const DisplayTransform& display) {
   std::vector<std::uint8_t> bytes(image.pixels.size() * 3);
-  if (display == DisplayTransform{}) {
-    for (std::size_t i = 0; i < image.pixels.size(); ++i)
-      for (int c = 0; c < 3; ++c) bytes[3 * i + c] = quantize_8bit(image.pixels[i][c]);
-  } else {
-    for (std::size_t i = 0; i < image.pixels.size(); ++i) encode_8bit(image.pixels[i], display, &bytes[3 * i]);
-  }
+  for (std::size_t i = 0; i < image.pixels.size(); ++i) encode_8bit(image.pixels[i], display, &bytes[3 * i]);
   return bytes;
 }
 

@@ -190,8 +190,9 @@ class Oiio final : public OiioModule {
   }
 
   // `texture`'s pixels as float, colour unassociated from alpha; false when it cannot be read.
-  static bool read_texture_pixels(const Texture& texture, OIIO::ImageBuf& image) {
-    std::optional<OIIO::Filesystem::IOMemReader> reader;
+  // `reader` holds embedded bytes for as long as `image` may read them.
+  static bool read_texture_pixels(const Texture& texture, OIIO::ImageBuf& image,
+                                  std::optional<OIIO::Filesystem::IOMemReader>& reader) {
     std::string name = texture.path;
     if (texture.encoded) {
       reader.emplace(texture.encoded->data(), texture.encoded->size());
@@ -204,8 +205,9 @@ class Oiio final : public OiioModule {
   }
 
   std::optional<AlphaImage> read_alpha(const Texture& texture, bool grey_is_alpha) const override {
+    std::optional<OIIO::Filesystem::IOMemReader> reader;
     OIIO::ImageBuf image;
-    if (!read_texture_pixels(texture, image)) return std::nullopt;
+    if (!read_texture_pixels(texture, image, reader)) return std::nullopt;
     const OIIO::ImageSpec& spec = image.spec();
     int channel = spec.alpha_channel;
     if (channel < 0 && (spec.nchannels == 2 || spec.nchannels == 4)) channel = spec.nchannels - 1;
@@ -219,8 +221,9 @@ class Oiio final : public OiioModule {
   }
 
   std::optional<Vec4f> texture_mean(const Texture& texture) const override {
+    std::optional<OIIO::Filesystem::IOMemReader> reader;
     OIIO::ImageBuf image;
-    if (!read_texture_pixels(texture, image)) return std::nullopt;
+    if (!read_texture_pixels(texture, image, reader)) return std::nullopt;
     const OIIO::ImageBufAlgo::PixelStats stats = OIIO::ImageBufAlgo::computePixelStats(image);
     const int channels = image.nchannels();
     if (channels < 1 || stats.avg.size() < static_cast<std::size_t>(channels)) return std::nullopt;

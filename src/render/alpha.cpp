@@ -53,12 +53,15 @@ SceneAlpha::SceneAlpha(const Scene& scene, const FlatScene& flat) : flat_(flat),
 
 double SceneAlpha::alpha_at(std::uint32_t primitive, float b1, float b2) const {
   const MaterialAlpha& alpha = materials_[flat_.material_of(primitive)];
-  if (alpha.width == 0 || flat_.is_sphere(primitive)) return alpha.constant;
+  return flat_.is_sphere(primitive) ? alpha.constant : triangle_alpha(alpha, primitive, b1, b2);
+}
+
+double SceneAlpha::triangle_alpha(const MaterialAlpha& alpha, std::uint32_t triangle, float b1, float b2) const {
+  if (alpha.width == 0) return alpha.constant;
   // Texture space, float, interpolated as the shader interpolates the hit's coordinates.
-  const Vec3u tri = flat_.triangles[primitive];
+  const Vec3u tri = flat_.triangles[triangle];
   const double b0 = 1.0 - double(b1) - double(b2);
-  const Vec2f uv = float(b0) * flat_.texcoords[tri.x] + float(double(b1)) * flat_.texcoords[tri.y] +
-                   float(double(b2)) * flat_.texcoords[tri.z];
+  const Vec2f uv = float(b0) * flat_.texcoords[tri.x] + b1 * flat_.texcoords[tri.y] + b2 * flat_.texcoords[tri.z];
   const int x = texel_index(uv.x, alpha.width, alpha.wrap_s), y = texel_index(uv.y, alpha.height, alpha.wrap_t);
   return std::clamp(double(alpha.constant) * alpha.texels[std::size_t(y) * std::size_t(alpha.width) + std::size_t(x)],
                     0.0, 1.0);
@@ -67,14 +70,14 @@ double SceneAlpha::alpha_at(std::uint32_t primitive, float b1, float b2) const {
 bool SceneAlpha::hit_counts(std::uint32_t triangle, float b1, float b2) const {
   calls_.fetch_add(1, std::memory_order_relaxed);
   const MaterialAlpha& alpha = materials_[flat_.material_ids[triangle]];
-  const double a = alpha_at(triangle, b1, b2);
+  const double a = triangle_alpha(alpha, triangle, b1, b2);
   return alpha.mode == AlphaMode::mask ? a >= alpha.cutoff : a > 0.0;
 }
 
 bool SceneAlpha::blocks(std::uint32_t triangle, float b1, float b2) const {
   calls_.fetch_add(1, std::memory_order_relaxed);
   const MaterialAlpha& alpha = materials_[flat_.material_ids[triangle]];
-  return alpha_at(triangle, b1, b2) >= (alpha.mode == AlphaMode::mask ? alpha.cutoff : 0.5);
+  return triangle_alpha(alpha, triangle, b1, b2) >= (alpha.mode == AlphaMode::mask ? alpha.cutoff : 0.5);
 }
 
 }  // namespace rt

@@ -404,7 +404,8 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
     }
   }
   Vec3d specular(material.specular);
-  Vec3d reflective(material.reflective.value_or(material.specular));
+  const Vec3d material_reflective(material.reflective.value_or(material.specular));
+  Vec3d reflective = material_reflective;  // the mirror weight, of a blended surface too
   // A blend surface is seen with weight alpha, the ray going on through it for the rest
   // (docs/alpha.md). The see-through ray is one level deeper; with no level left the surface is
   // drawn fully.
@@ -525,9 +526,8 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
                          depth, path_seed, counts, shadows);
 
   if (depth < context.scene.settings.max_depth && glass.share > 0.0) {
-    add_dielectric_rays(context, surface, normal, direction, material, glass,
-                        Vec3d(material.reflective.value_or(material.specular)), coverage, depth, counts, throughput,
-                        path_seed, shadows, [&](SkipRule rule) { skip(rule, -1); });
+    add_dielectric_rays(context, surface, normal, direction, material, glass, material_reflective, coverage, depth,
+                        counts, throughput, path_seed, shadows, [&](SkipRule rule) { skip(rule, -1); });
   } else if (depth < context.scene.settings.max_depth) {
     const Vec3d next_throughput = throughput * reflective;
     if (prune && !terms.reflection) {
@@ -535,7 +535,7 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
     } else if (plan.options.min_throughput > 0.0 && max_channel(next_throughput) < plan.options.min_throughput) {
       skip(SkipRule::low_throughput, -1);
     } else {
-      const Vec3d reflected = direction - 2.0 * glm::dot(direction, normal) * normal;
+      const Vec3d reflected = reflect_direction(direction, normal);
       Ray reflection_ray;
       reflection_ray.origin = offset_ray_origin(context.ray_offset, surface, reflected);
       reflection_ray.direction = Vec3f(reflected);

@@ -89,8 +89,8 @@ struct AccelOptions {
   // creates its own.
   std::shared_ptr<EmbreeDevice> embree_device;
   // Alpha-tested triangles: Embree runs filter functions on a geometry of these alone, the
-  // reference tests them as it goes. Null (or no tested triangle): every surface is opaque and
-  // queries run exactly as without alpha. Must outlive the accel.
+  // reference tests them as it goes. Null: every surface is opaque; Embree also builds exactly as
+  // without alpha when no triangle is tested. Must outlive the accel.
   const AlphaTest* alpha_test = nullptr;
 };
 

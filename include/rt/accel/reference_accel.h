@@ -67,7 +67,7 @@ class ReferenceAccel final : public Accel {
                      TriangleHitD& hit) const;
 
   ReferenceTest test_;
-  const AlphaTest* alpha_ = nullptr;  // null unless some triangle is tested
+  const AlphaTest* alpha_ = nullptr;  // may be null
   std::vector<TriangleD> triangles_;
   std::vector<FlatSphere> spheres_;
 };

@@ -32,6 +32,11 @@ struct DisplayTransform {
   bool operator==(const DisplayTransform&) const = default;
 };
 
+// 8-bit quantisation of the course scenes (the identity DisplayTransform): clamp to [0, 1], then
+// byte = floor(255 c) in float, no transfer function. (The CSE167x references were made this way;
+// round() would disagree on most pixels.) NaN maps to 0.
+std::uint8_t quantize_8bit(float c);
+
 // The 8-bit RGB of the linear colour `c` (linear RGB, any range; NaN maps to 0).
 void encode_8bit(const Color& c, const DisplayTransform& display, std::uint8_t out[3]);
 

@@ -14,12 +14,8 @@
 
 namespace rt {
 
-// 8-bit quantisation of the course scenes: clamp to [0, 1], then byte = floor(255 c), no gamma.
-// (The CSE167x references were made this way; round() would disagree on most pixels.)
-std::uint8_t quantize_8bit(float c);
-
-// The image as interleaved 8-bit RGB, rows top to bottom, through `display` (the default,
-// linear: quantize_8bit).
+// The image as interleaved 8-bit RGB, rows top to bottom, through `display` (encode_8bit; the
+// default is quantize_8bit).
 std::vector<std::uint8_t> to_rgb8(const Image& image, const DisplayTransform& display = {});
 
 // True for extensions written as linear float (.exr, .hdr); everything else is 8-bit.

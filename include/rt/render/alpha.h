@@ -46,6 +46,9 @@ class SceneAlpha final : public AlphaTest {
     std::vector<float> texels;
     TextureWrap wrap_s = TextureWrap::repeat, wrap_t = TextureWrap::repeat;
   };
+  // The alpha of triangle `triangle`, whose material's is `alpha`, at barycentrics (b1, b2).
+  double triangle_alpha(const MaterialAlpha& alpha, std::uint32_t triangle, float b1, float b2) const;
+
   const FlatScene& flat_;
   std::vector<MaterialAlpha> materials_;
   bool any_ = false;
