@@ -11,7 +11,7 @@
 #include "rt/accel/accel.h"
 #include "rt/flatten/flatten.h"
 #include "rt/io/load_scene.h"
-#include "rt/render/alpha.h"
+#include "rt/render/surface_test.h"
 #include "rt/render/render.h"
 #include "rt/render/texture.h"
 #include "test_util.h"
@@ -46,8 +46,8 @@ rt::Scene quad_scene(const std::string& material, int max_depth) {
 
 rt::Color centre_pixel(const rt::Scene& scene) {
   const rt::FlatScene flat = rt::flatten_scene(scene);
-  const rt::SceneAlpha alpha(scene, flat);
-  const auto accel = rt::build_accel(rt::AccelKind::embree, flat, rt::with_alpha({}, alpha));
+  const rt::SceneSurfaceTest test(scene, flat);
+  const auto accel = rt::build_accel(rt::AccelKind::embree, flat, rt::with_surface_test({}, test));
   return rt::render_image(scene, flat, *accel, {}).image.at(4, 4);
 }
 

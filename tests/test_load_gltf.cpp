@@ -21,7 +21,7 @@
 #include "rt/flatten/flatten.h"
 #include "rt/io/load_gltf.h"
 #include "rt/io/load_scene.h"
-#include "rt/render/alpha.h"
+#include "rt/render/surface_test.h"
 #include "rt/render/render.h"
 #include "test_util.h"
 
@@ -472,8 +472,8 @@ TEST_CASE("gltf alpha: MASK cuts out exactly the texels below the cutoff, in eve
     const rt::Scene scene = load(builder.write(dir, "mask"));
     REQUIRE(scene.materials.size() == 2);
     const rt::FlatScene flat = rt::flatten_scene(scene);
-    const rt::SceneAlpha alpha(scene, flat);
-    REQUIRE(alpha.any());
+    const rt::SceneSurfaceTest test(scene, flat);
+    REQUIRE(test.alpha().any());
     const bool mask = std::string(mode) == "MASK";
     // 64 x 64 rays along -z through texel interiors (texel edges fall on multiples of 16).
     std::vector<rt::Ray> rays;
@@ -498,8 +498,8 @@ TEST_CASE("gltf alpha: MASK cuts out exactly the texels below the cutoff, in eve
                           Kind{"reference", rt::AccelKind::reference, rt::EmbreeKernel::native}}) {
       rt::AccelOptions options;
       options.embree_kernel = k.kernel;
-      const auto accel = rt::build_accel(k.kind, flat, rt::with_alpha(options, alpha));
-      REQUIRE(accel->alpha_test() == &alpha);
+      const auto accel = rt::build_accel(k.kind, flat, rt::with_surface_test(options, test));
+      REQUIRE(accel->surface_test() == &test);
       std::vector<rt::Hit> coherent(rays.size());
       accel->intersect_coherent(rays, coherent);
       std::vector<std::uint8_t> blocked(rays.size());
@@ -530,7 +530,7 @@ TEST_CASE("gltf alpha: MASK cuts out exactly the texels below the cutoff, in eve
       CHECK(wrong_shadow == 0);
       CHECK(wrong_shadow_coherent == 0);
     }
-    CHECK(alpha.calls() > 0);
+    CHECK(test.alpha().calls() > 0);
   }
 }
 

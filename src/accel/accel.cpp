@@ -19,9 +19,9 @@ void Accel::occluded_coherent(std::span<const Ray> rays, std::span<std::uint8_t>
 std::unique_ptr<Accel> build_accel(AccelKind kind, const FlatScene& scene, const AccelOptions& options) {
   switch (kind) {
     case AccelKind::embree: return std::make_unique<EmbreeAccel>(scene, options);
-    case AccelKind::reference: return std::make_unique<ReferenceAccel>(scene, ReferenceTest::watertight, options.alpha_test);
+    case AccelKind::reference: return std::make_unique<ReferenceAccel>(scene, ReferenceTest::watertight, options.surface_test);
     case AccelKind::reference_barycentric:
-      return std::make_unique<ReferenceAccel>(scene, ReferenceTest::barycentric, options.alpha_test);
+      return std::make_unique<ReferenceAccel>(scene, ReferenceTest::barycentric, options.surface_test);
   }
   throw RuntimeError("unknown accelerator kind");
 }

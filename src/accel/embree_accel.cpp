@@ -115,13 +115,13 @@ float widened(double t) {
 }
 
 // What a geometry's callbacks read (its Embree user pointer): the world-space scene, the box
-// padding of user geometries, and, for the triangle geometries of a scene with alpha, which
-// FlatScene triangle each primitive is and the alpha test.
+// padding of user geometries, and, for the triangle geometries of a scene with a surface test,
+// which FlatScene triangle each primitive is and the test.
 struct UserGeometryData {
   const FlatScene* flat = nullptr;
   float box_padding = 0.0f;  // world-space units, added on every side of each primitive's box
   const std::uint32_t* triangles = nullptr;  // FlatScene index of each primitive; null: the same index
-  const AlphaTest* alpha = nullptr;          // set on the geometry of alpha-tested triangles only
+  const SurfaceTest* test = nullptr;         // set on the geometry of the tested triangles only
 };
 
 // FlatScene triangle of primitive `prim` of the geometry whose data is `data`.
@@ -131,7 +131,7 @@ unsigned flat_triangle(const UserGeometryData* data, unsigned prim) {
 
 // Context intersection filter of the native triangle kernel: Embree offers candidates one after
 // another, having set the ray's tfar to the candidate's t. kMapped: the scene's triangles are
-// split into an opaque and an alpha-tested geometry (UserGeometryData::triangles numbers them).
+// split into an untested and a tested geometry (UserGeometryData::triangles numbers them).
 template <bool kMapped>
 void order_hits(const RTCFilterFunctionNArguments* args) {
   auto* context = reinterpret_cast<HitContext*>(args->context);
@@ -148,17 +148,30 @@ void order_hits(const RTCFilterFunctionNArguments* args) {
   }
 }
 
-// Geometry filters of the native alpha-tested triangles (Embree's documented way to cut out
-// surfaces, run before the context filter): a candidate where the surface is not there is
+Vec3d ray_direction(const RTCRayN* ray, unsigned n, unsigned i) {
+  auto* r = const_cast<RTCRayN*>(ray);
+  return {RTCRayN_dir_x(r, n, i), RTCRayN_dir_y(r, n, i), RTCRayN_dir_z(r, n, i)};
+}
+
+// Whether the SurfaceTest in `data` lets a candidate on FlatScene triangle `prim` count (occlusion:
+// block the ray).
+template <bool kOcclusion>
+bool surface_counts(const UserGeometryData* data, unsigned prim, float b1, float b2, const Vec3d& direction) {
+  const bool back_face = arrives_from_behind(*data->flat, prim, direction);
+  return kOcclusion ? data->test->blocks(prim, b1, b2, back_face) : data->test->hit_counts(prim, b1, b2, back_face);
+}
+
+// Geometry filters of the native tested triangles (Embree's documented way to cut out surfaces,
+// run before the context filter): a candidate where the surface is not there for the ray is
 // rejected and traversal goes on behind it.
 template <bool kOcclusion>
-void alpha_filter(const RTCFilterFunctionNArguments* args) {
+void surface_filter(const RTCFilterFunctionNArguments* args) {
   const auto* data = static_cast<const UserGeometryData*>(args->geometryUserPtr);
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] == 0) continue;
     const unsigned prim = flat_triangle(data, RTCHitN_primID(args->hit, args->N, i));
     const float b1 = RTCHitN_u(args->hit, args->N, i), b2 = RTCHitN_v(args->hit, args->N, i);
-    if (!(kOcclusion ? data->alpha->blocks(prim, b1, b2) : data->alpha->hit_counts(prim, b1, b2))) args->valid[i] = 0;
+    if (!surface_counts<kOcclusion>(data, prim, b1, b2, ray_direction(args->ray, args->N, i))) args->valid[i] = 0;
   }
 }
 
@@ -166,8 +179,8 @@ void alpha_filter(const RTCFilterFunctionNArguments* args) {
 // User geometries: spheres always, and triangles with the watertight kernel. Their callbacks run
 // the reference's double-precision tests on the FlatScene data.
 
-// Geometry IDs. Alpha-tested triangles get a geometry of their own only when the scene has some.
-constexpr unsigned kTriangleGeometry = 0, kSphereGeometry = 1, kAlphaGeometry = 2;
+// Geometry IDs. Tested triangles get a geometry of their own only when the scene has some.
+constexpr unsigned kTriangleGeometry = 0, kSphereGeometry = 1, kTestedGeometry = 2;
 
 // Embree traverses user geometry with its fast, non-conservative box test (Embree 3.13 compiles
 // BVH4VirtualIntersector1 with robust = false whatever the scene flags say), so a ray through a
@@ -233,9 +246,6 @@ bool test_primitive(unsigned geometry, const FlatScene& flat, unsigned prim, con
 Vec3d ray_origin(RTCRayN* ray, unsigned n, unsigned i) {
   return {RTCRayN_org_x(ray, n, i), RTCRayN_org_y(ray, n, i), RTCRayN_org_z(ray, n, i)};
 }
-Vec3d ray_direction(RTCRayN* ray, unsigned n, unsigned i) {
-  return {RTCRayN_dir_x(ray, n, i), RTCRayN_dir_y(ray, n, i), RTCRayN_dir_z(ray, n, i)};
-}
 
 template <unsigned kGeometry>
 void user_intersect(const RTCIntersectFunctionNArguments* args) {
@@ -254,7 +264,8 @@ void user_intersect(const RTCIntersectFunctionNArguments* args) {
     BestHit& best = context->of(ray, args->N, i);
     if (!test_primitive(kGeometry, flat, tested, ray_origin(ray, args->N, i), ray_direction(ray, args->N, i),
                         RTCRayN_tnear(ray, args->N, i), best.t, hit) ||
-        (data->alpha && !data->alpha->hit_counts(prim, static_cast<float>(hit.b1), static_cast<float>(hit.b2))) ||
+        (data->test && !surface_counts<false>(data, prim, static_cast<float>(hit.b1), static_cast<float>(hit.b2),
+                                              ray_direction(ray, args->N, i))) ||
         !best.offer(hit.t, prim, hit.b1, hit.b2))
       continue;
     RTCRayN_tfar(ray, args->N, i) = widened(hit.t);
@@ -277,7 +288,8 @@ void user_occluded(const RTCOccludedFunctionNArguments* args) {
     TriangleHitD hit;
     if (test_primitive(kGeometry, flat, prim, ray_origin(args->ray, args->N, i),
                        ray_direction(args->ray, args->N, i), RTCRayN_tnear(args->ray, args->N, i), tfar, hit) &&
-        (!data->alpha || data->alpha->blocks(prim, static_cast<float>(hit.b1), static_cast<float>(hit.b2))))
+        (!data->test || surface_counts<true>(data, prim, static_cast<float>(hit.b1), static_cast<float>(hit.b2),
+                                             ray_direction(args->ray, args->N, i))))
       tfar = -kInfinity;
   }
 }
@@ -356,13 +368,13 @@ struct EmbreeAccel::Impl {
   EmbreeDevice::Impl* device = nullptr;
   std::int64_t baseline_bytes = 0;  // the device's memory_bytes when this accel began
   RTCScene scene = nullptr;
-  // Read by the callbacks of the triangle geometry (opaque triangles when the scene has alpha),
-  // the alpha-tested triangles' geometry and the spheres'.
-  UserGeometryData triangle_data, alpha_data, sphere_data;
-  // With alpha: the opaque and the alpha-tested triangles, each with their FlatScene indices.
-  std::vector<Vec3u> opaque_triangles, alpha_triangles;
-  std::vector<std::uint32_t> opaque_index, alpha_index;
-  const AlphaTest* alpha = nullptr;   // null unless some triangle is tested
+  // Read by the callbacks of the triangle geometry (the untested triangles when some are tested),
+  // the tested triangles' geometry and the spheres'.
+  UserGeometryData triangle_data, tested_data, sphere_data;
+  // With a surface test: the untested and the tested triangles, each with their FlatScene indices.
+  std::vector<Vec3u> untested_triangles, tested_triangles;
+  std::vector<std::uint32_t> untested_index, tested_index;
+  const SurfaceTest* test = nullptr;   // null unless some triangle is tested
   RTCFilterFunctionN context_filter = &order_hits<false>;
   bool use_packets = true;     // the *_coherent queries trace packets (see intersect_coherent)
 
@@ -384,24 +396,24 @@ struct EmbreeAccel::Impl {
     rtcReleaseGeometry(geometry);
   }
 
-  // With an alpha test that tests some triangle: the opaque and the tested triangles apart, the
-  // geometries' data numbering them, and the context filter that maps the numbers back.
-  void split_by_alpha(const FlatScene& flat, const AlphaTest* test) {
-    if (!test) return;
+  // With a surface test that tests some triangle: the untested and the tested triangles apart,
+  // the geometries' data numbering them, and the context filter that maps the numbers back.
+  void split_by_test(const FlatScene& flat, const SurfaceTest* surface_test) {
+    if (!surface_test) return;
     for (std::uint32_t t = 0; t < flat.triangle_count(); ++t) {
-      const bool tested = test->tested(t);
-      (tested ? alpha_triangles : opaque_triangles).push_back(flat.triangles[t]);
-      (tested ? alpha_index : opaque_index).push_back(t);
+      const bool tested = surface_test->tested(t);
+      (tested ? tested_triangles : untested_triangles).push_back(flat.triangles[t]);
+      (tested ? tested_index : untested_index).push_back(t);
     }
-    if (alpha_triangles.empty()) {
-      opaque_triangles = {};
-      opaque_index = {};
+    if (tested_triangles.empty()) {
+      untested_triangles = {};
+      untested_index = {};
       return;
     }
-    alpha = test;
-    triangle_data.triangles = opaque_index.data();
-    alpha_data.triangles = alpha_index.data();
-    alpha_data.alpha = test;
+    test = surface_test;
+    triangle_data.triangles = untested_index.data();
+    tested_data.triangles = tested_index.data();
+    tested_data.test = surface_test;
     context_filter = &order_hits<true>;
   }
 
@@ -429,11 +441,11 @@ EmbreeAccel::EmbreeAccel(const FlatScene& flat, const AccelOptions& options) : i
                                      (options.embree_robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE)));
   rtcSetSceneBuildQuality(impl_->scene, to_embree(options.embree_quality));
   const float padding = user_box_padding(flat);
-  impl_->triangle_data = impl_->alpha_data = impl_->sphere_data = {&flat, padding, nullptr, nullptr};
+  impl_->triangle_data = impl_->tested_data = impl_->sphere_data = {&flat, padding, nullptr, nullptr};
   impl_->use_packets = (options.embree_robust || options.embree_kernel == EmbreeKernel::watertight) && !compact;
-  impl_->split_by_alpha(flat, options.alpha_test);
-  // The triangles of one geometry: all of them (no alpha: FlatScene's buffers, shared), or the
-  // opaque or alpha-tested ones (own index buffers, FlatScene numbers in data.triangles).
+  impl_->split_by_test(flat, options.surface_test);
+  // The triangles of one geometry: all of them (none tested: FlatScene's buffers, shared), or the
+  // untested or tested ones (own index buffers, FlatScene numbers in data.triangles).
   const auto add_triangles = [&](unsigned id, const std::vector<Vec3u>& triangles, UserGeometryData& data) {
     if (triangles.empty()) return;
     RTCGeometry geometry = nullptr;
@@ -446,21 +458,21 @@ EmbreeAccel::EmbreeAccel(const FlatScene& flat, const AccelOptions& options) : i
       rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, triangles.data(), 0,
                                  sizeof(Vec3u), triangles.size());
       if (data.triangles) rtcSetGeometryUserData(geometry, &data);
-      if (data.alpha) {
-        rtcSetGeometryIntersectFilterFunction(geometry, &alpha_filter<false>);
-        rtcSetGeometryOccludedFilterFunction(geometry, &alpha_filter<true>);
+      if (data.test) {
+        rtcSetGeometryIntersectFilterFunction(geometry, &surface_filter<false>);
+        rtcSetGeometryOccludedFilterFunction(geometry, &surface_filter<true>);
       }
     } else {
-      geometry = id == kAlphaGeometry ? impl_->new_user_geometry<kAlphaGeometry>(triangles.size(), &triangle_bounds, data)
+      geometry = id == kTestedGeometry ? impl_->new_user_geometry<kTestedGeometry>(triangles.size(), &triangle_bounds, data)
                                       : impl_->new_user_geometry<kTriangleGeometry>(triangles.size(), &triangle_bounds, data);
     }
     impl_->attach(geometry, id, options.embree_quality);
   };
-  if (!impl_->alpha) {
+  if (!impl_->test) {
     add_triangles(kTriangleGeometry, flat.triangles, impl_->triangle_data);
   } else {
-    add_triangles(kTriangleGeometry, impl_->opaque_triangles, impl_->triangle_data);
-    add_triangles(kAlphaGeometry, impl_->alpha_triangles, impl_->alpha_data);
+    add_triangles(kTriangleGeometry, impl_->untested_triangles, impl_->triangle_data);
+    add_triangles(kTestedGeometry, impl_->tested_triangles, impl_->tested_data);
   }
   if (!flat.spheres.empty())
     impl_->attach(impl_->new_user_geometry<kSphereGeometry>(flat.spheres.size(), &sphere_bounds, impl_->sphere_data),
@@ -471,7 +483,7 @@ EmbreeAccel::EmbreeAccel(const FlatScene& flat, const AccelOptions& options) : i
 
 EmbreeAccel::~EmbreeAccel() = default;
 
-const AlphaTest* EmbreeAccel::alpha_test() const { return impl_->alpha; }
+const SurfaceTest* EmbreeAccel::surface_test() const { return impl_->test; }
 
 std::size_t EmbreeAccel::memory_bytes() const {
   const std::int64_t bytes = impl_->device->memory_bytes.load(std::memory_order_relaxed) - impl_->baseline_bytes;

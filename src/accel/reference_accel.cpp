@@ -124,8 +124,8 @@ bool intersect_sphere(const Vec3d& origin, const Vec3d& direction, double tnear,
   return false;
 }
 
-ReferenceAccel::ReferenceAccel(const FlatScene& scene, ReferenceTest test, const AlphaTest* alpha)
-    : test_(test), alpha_(alpha), spheres_(scene.spheres) {
+ReferenceAccel::ReferenceAccel(const FlatScene& scene, ReferenceTest test, const SurfaceTest* surface_test)
+    : test_(test), surface_test_(surface_test), spheres_(scene.spheres) {
   triangles_.reserve(scene.triangle_count());
   for (const Vec3u& tri : scene.triangles)
     triangles_.push_back({Vec3d(scene.positions[tri.x]), Vec3d(scene.positions[tri.y]), Vec3d(scene.positions[tri.z])});
@@ -138,6 +138,16 @@ bool ReferenceAccel::intersect_one(const TriangleD& tri, const Vec3d& origin, co
              : intersect_triangle_barycentric(origin, direction, tnear, tfar, tri.p0, tri.p1, tri.p2, hit);
 }
 
+bool ReferenceAccel::counts(std::uint32_t triangle, const Vec3d& direction, const TriangleHitD& hit, bool occlusion) const {
+  if (!surface_test_ || !surface_test_->tested(triangle)) return true;
+  const auto b1 = static_cast<float>(hit.b1), b2 = static_cast<float>(hit.b2);
+  // arrives_from_behind on the same double copies of the float32 vertices.
+  const TriangleD& tri = triangles_[triangle];
+  const bool back_face = glm::dot(glm::cross(tri.p1 - tri.p0, tri.p2 - tri.p0), direction) > 0.0;
+  return occlusion ? surface_test_->blocks(triangle, b1, b2, back_face)
+                   : surface_test_->hit_counts(triangle, b1, b2, back_face);
+}
+
 Hit ReferenceAccel::intersect(const Ray& ray) const {
   const Vec3d origin(ray.origin), direction(ray.direction);
   TriangleHitD best{double(ray.tfar), 0.0, 0.0};
@@ -147,8 +157,7 @@ Hit ReferenceAccel::intersect(const Ray& ray) const {
     // Later triangles must be strictly closer to replace a hit, so equal t keeps the lowest index.
     if (intersect_one(triangles_[i], origin, direction, ray.tnear, best.t, hit) &&
         (best_index == kNoPrimitive || hit.t < best.t) &&
-        (!alpha_ || !alpha_->tested(std::uint32_t(i)) ||
-         alpha_->hit_counts(std::uint32_t(i), static_cast<float>(hit.b1), static_cast<float>(hit.b2)))) {
+        counts(std::uint32_t(i), direction, hit, false)) {
       best = hit;
       best_index = static_cast<std::uint32_t>(i);
     }
@@ -170,8 +179,7 @@ bool ReferenceAccel::occluded(const Ray& ray) const {
   TriangleHitD hit;
   for (std::size_t i = 0; i < triangles_.size(); ++i)
     if (intersect_one(triangles_[i], origin, direction, ray.tnear, ray.tfar, hit) &&
-        (!alpha_ || !alpha_->tested(std::uint32_t(i)) ||
-         alpha_->blocks(std::uint32_t(i), static_cast<float>(hit.b1), static_cast<float>(hit.b2))))
+        counts(std::uint32_t(i), direction, hit, true))
       return true;
   double t;
   for (const FlatSphere& sphere : spheres_)

@@ -27,7 +27,7 @@
 #include "rt/io/image_io.h"
 #include "rt/io/load_scene.h"
 #include "rt/io/merge.h"
-#include "rt/render/alpha.h"
+#include "rt/render/surface_test.h"
 #include "rt/render/fingerprint.h"
 #include "rt/render/render.h"
 #include "rt/view/viewer.h"
@@ -269,8 +269,8 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
   warn_about_dropped_triangles(scene, flat, args.quiet);
 
   phase_start = Clock::now();
-  const SceneAlpha alpha(scene, flat);
-  const std::unique_ptr<Accel> accel = build_accel(batch.accel_kind, flat, with_alpha(batch.accel_options, alpha));
+  const SceneSurfaceTest surface_test(scene, flat);
+  const std::unique_ptr<Accel> accel = build_accel(batch.accel_kind, flat, with_surface_test(batch.accel_options, surface_test));
   const double build_s = seconds_since(phase_start);
 
   RenderOptions options = render_options(args, batch);
@@ -352,7 +352,7 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
                      {"reflection", result.rays.reflection},
                      {"refraction", result.rays.refraction},
                      {"see_through", result.rays.see_through},
-                     {"alpha_tests", alpha.calls()},
+                     {"alpha_tests", surface_test.alpha().calls()},
                      {"area_light", result.rays.area_light},
                      {"total", result.rays.total()}};
     stats["effects"] = effects_json(result.plan, scene);
@@ -364,7 +364,8 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
   }
   if (args.explain) {
     fmt::print("{}", explain_render(result, scene));
-    if (alpha.any()) fmt::print("  alpha tests          {:>8} (filter calls on the alpha-tested triangles)\n", alpha.calls());
+    if (surface_test.alpha().any())
+      fmt::print("  alpha tests          {:>8} (filter calls on the alpha-tested triangles)\n", surface_test.alpha().calls());
   }
   if (!args.quiet)
     fmt::print(
@@ -470,8 +471,8 @@ int run_view(const ViewArgs& args) {
   release_object_meshes(scene);
   if (!args.render.quiet) print_notices(args.render.scene, report, scene);
   warn_about_dropped_triangles(scene, flat, args.render.quiet);
-  const SceneAlpha alpha(scene, flat);
-  const std::unique_ptr<Accel> accel = build_accel(batch.accel_kind, flat, with_alpha(batch.accel_options, alpha));
+  const SceneSurfaceTest surface_test(scene, flat);
+  const std::unique_ptr<Accel> accel = build_accel(batch.accel_kind, flat, with_surface_test(batch.accel_options, surface_test));
 
   options.render = render_options(args.render, batch);
   options.screenshot_path = args.screenshot;
@@ -510,6 +511,12 @@ std::string glass_text(const Material& m) {
   return text;
 }
 
+// ", back faces flipped" or ", back faces culled" for `rt info`; empty for the course's unflipped.
+std::string back_face_text(const Material& m) {
+  if (m.is_dielectric() || m.back_face == BackFace::unflipped) return "";
+  return m.back_face == BackFace::flipped ? ", back faces flipped" : ", back faces culled";
+}
+
 // ", mask at 0.5, alpha 1 x texture T" for `rt info`; empty for an opaque material.
 std::string alpha_text(const Material& m) {
   if (!m.has_alpha()) return "";
@@ -544,9 +551,10 @@ int run_info(const std::string& scene_path, const GltfOptions& gltf, const Scene
                bounds.lo.z, bounds.hi.x, bounds.hi.y, bounds.hi.z);
   fmt::print("materials   {}\n", scene.materials.size());
   for (const Material& m : scene.materials)
-    fmt::print("  {:<16} diffuse ({}, {}, {}), specular ({}, {}, {}), shininess {}{}{}{}\n", m.name, m.diffuse.r,
+    fmt::print("  {:<16} diffuse ({}, {}, {}), specular ({}, {}, {}), shininess {}{}{}{}{}\n", m.name, m.diffuse.r,
                m.diffuse.g, m.diffuse.b, m.specular.r, m.specular.g, m.specular.b, m.shininess,
-               m.diffuse_texture.empty() ? "" : ", texture " + m.diffuse_texture.path, glass_text(m), alpha_text(m));
+               m.diffuse_texture.empty() ? "" : ", texture " + m.diffuse_texture.path, glass_text(m), alpha_text(m),
+               back_face_text(m));
   fmt::print("lights      {}\n", scene.lights.size());
   for (const Light& l : scene.lights) {
     if (l.is_directional())

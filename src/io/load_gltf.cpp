@@ -27,7 +27,7 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-// Roughness at and above which a surface gets no mirror reflection (see docs/input-formats.md).
+// Roughness at and above which a surface gets no mirror reflection (see docs/scene-formats.md).
 constexpr double kMirrorRoughness = 0.3;
 // Largest accessor element count accepted (keeps a malformed count from exhausting memory).
 constexpr std::size_t kMaxAccessorCount = std::size_t(1) << 28;
@@ -492,7 +492,7 @@ void GltfReader::read_transmission(const tinygltf::Material& source, const std::
   }
 }
 
-// pbrMetallicRoughness -> Blinn-Phong; the mapping and its reasons are in docs/input-formats.md.
+// pbrMetallicRoughness -> Blinn-Phong; the mapping and its reasons are in docs/scene-formats.md.
 Material GltfReader::read_material(int index) {
   Material material;
   if (index < 0) {
@@ -501,6 +501,7 @@ Material GltfReader::read_material(int index) {
     material.specular = Color(1.0f);
     material.shininess = 1.0f;
     material.reflective = Color(0.0f);
+    material.back_face = BackFace::culled;  // doubleSided defaults to false
     return material;
   }
   const tinygltf::Material& source = gltf_.materials[static_cast<std::size_t>(index)];
@@ -529,6 +530,9 @@ Material GltfReader::read_material(int index) {
   if (source.normalTexture.index >= 0) count("normal maps ignored");
   if (source.occlusionTexture.index >= 0) count("occlusion maps ignored");
   read_alpha(source, at, material);
+  // The spec: a single-sided material's back faces are culled; a double-sided one's are lit with
+  // the normal reversed.
+  material.back_face = source.doubleSided ? BackFace::flipped : BackFace::culled;
 
   // KHR_materials_ior: the dielectric's index, which also sets its normal-incidence reflectance
   // ((n - 1) / (n + 1))^2 (0.04 at the default 1.5).
@@ -726,7 +730,7 @@ void GltfReader::read_lights(const std::vector<Placed>& placed, Scene& scene) {
       fail(light_at, "colour and intensity must be >= 0");
     if (source.range > 0.0) count("light ranges ignored (lights reach everywhere)");
     Light light;
-    // candela (point, spot) or lux (directional) -> our radiometric colour: / pi, see docs/input-formats.md.
+    // candela (point, spot) or lux (directional) -> our radiometric colour: / pi, see docs/scene-formats.md.
     light.color = Color(color * source.intensity / kPi);
     const Vec3d origin(p.world_from_node * Vec4d(0.0, 0.0, 0.0, 1.0));
     const Vec3d forward(p.world_from_node * Vec4d(0.0, 0.0, -1.0, 0.0));

@@ -132,6 +132,7 @@ Color color_of(const tinyobj::real_t rgb[3]) { return Color(rgb[0], rgb[1], rgb[
 // `directory`: where the OBJ lives; MTL texture paths are relative to it.
 Material to_material(const tinyobj::material_t& m, const fs::path& directory) {
   Material material;
+  material.back_face = BackFace::flipped;  // OBJ has no sides: lit from either, as renderers treat it
   if (!m.diffuse_texname.empty()) material.diffuse_texture.path = (directory / m.diffuse_texname).lexically_normal().string();
   material.name = m.name;
   material.ambient = color_of(m.ambient);
@@ -144,7 +145,7 @@ Material to_material(const tinyobj::material_t& m, const fs::path& directory) {
     material.emission_texture.path = (directory / m.emissive_texname).lexically_normal().string();
   material.shininess = static_cast<float>(m.shininess);
   // illum 3 and 5 trace a mirror reflection weighted by Ks. illum 4, 6 and 7 are glass
-  // (docs/input-formats.md): a dielectric of index Ni whose transmitted light is filtered by Tf
+  // (docs/scene-formats.md): a dielectric of index Ni whose transmitted light is filtered by Tf
   // (clear when the file gives no Tf), its reflection weighted by the exact Fresnel reflectance
   // in place of Ks; the Phong terms stay.
   material.reflective = (m.illum == 3 || m.illum == 5) ? material.specular : Color(0.0f);
@@ -197,6 +198,7 @@ TriangleMesh load_obj_mesh(const std::string& path, const ObjLoadOptions& option
 Material default_obj_material() {
   Material material;
   material.name = "(default)";
+  material.back_face = BackFace::flipped;
   material.ambient = Color(0.1f);
   material.diffuse = Color(0.7f);
   material.specular = Color(0.2f);

@@ -203,7 +203,7 @@ Camera SceneReader::read_camera(const json& value, const std::string& where) con
 Material SceneReader::read_material(const json& value, const std::string& where, const std::string& name) const {
   require_object(value, where);
   check_keys(value, where, {"ambient", "diffuse", "specular", "emission", "shininess", "emitter", "transmission", "ior",
-                            "thin", "attenuation_color", "attenuation_distance", "alpha", "alpha_mode", "alpha_cutoff"});
+                            "thin", "attenuation_color", "attenuation_distance", "alpha", "alpha_mode", "alpha_cutoff", "back_face"});
   Material material;
   material.name = name;
   if (value.contains("ambient")) material.ambient = read_color(value["ambient"], child(where, "ambient"));
@@ -267,6 +267,13 @@ Material SceneReader::read_material(const json& value, const std::string& where,
     const double cutoff = read_number(value["alpha_cutoff"], child(where, "alpha_cutoff"));
     if (!(cutoff >= 0.0 && cutoff <= 1.0)) fail(child(where, "alpha_cutoff"), fmt::format("alpha_cutoff {} is outside [0, 1]", cutoff));
     material.alpha_cutoff = static_cast<float>(cutoff);
+  }
+  if (value.contains("back_face")) {  // docs/scene-formats.md, "Front and back faces"
+    const std::string mode = read_string(value["back_face"], child(where, "back_face"));
+    if (mode == "unflipped") material.back_face = BackFace::unflipped;
+    else if (mode == "flipped") material.back_face = BackFace::flipped;
+    else if (mode == "culled") material.back_face = BackFace::culled;
+    else fail(child(where, "back_face"), fmt::format("'{}' is not unflipped, flipped or culled", mode));
   }
   return material;
 }

@@ -1,6 +1,6 @@
 // The CSE167x / CS184.1x ".test" scene format. The semantics (defaults, per-object ambient,
 // right-multiplied transforms captured at declaration, world-space lights, ...) follow the
-// course's specification as summarised in docs/input-formats.md.
+// course's specification as summarised in docs/scene-formats.md.
 
 #include "rt/io/load_test.h"
 

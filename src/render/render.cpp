@@ -1,6 +1,6 @@
 #include "rt/render/render.h"
 
-#include "rt/render/alpha.h"
+#include "rt/render/surface_test.h"
 
 #include <x86intrin.h>
 
@@ -86,7 +86,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   RenderResult result;
   result.plan = plan_effects(scene, flat, options.ray_offset, options.effects, &textures);
   ShadingContext context{scene, flat, accel, result.plan, options.ray_offset, &textures, false};
-  context.alpha = dynamic_cast<const SceneAlpha*>(accel.alpha_test());
+  context.alpha = scene_alpha_of(accel);
   ShadingContext timed_context = context;
   timed_context.time_queries = true;
   const int tile = std::max(1, options.tile_size);
@@ -291,7 +291,7 @@ std::vector<std::string> trace_pixel(const Scene& scene, const FlatScene& flat, 
   const EffectsPlan plan = plan_effects(scene, flat, options.ray_offset, options.effects, &textures);
   std::vector<std::string> lines;
   ShadingContext context{scene, flat, accel, plan, options.ray_offset, &textures, false};
-  context.alpha = dynamic_cast<const SceneAlpha*>(accel.alpha_test());
+  context.alpha = scene_alpha_of(accel);
   context.trace = &lines;
   const int spp = std::max(1, options.samples_per_pixel);
   ScopedFlushDenormals flush;  // as in render_image, so the trace shows the values the render computes

@@ -389,6 +389,13 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
   const Vec3d to_eye = -direction;
   const std::uint32_t material_id = flat.material_of(hit.primitive);
   const Material& material = context.scene.materials[material_id];
+  // A two-sided surface seen from behind is lit as its front (glTF doubleSided): the shading
+  // normal turns towards the viewer. The geometric normal stays as it is, for the rules that
+  // need the outward side (emitters' front, the convex rule); ray origins take their side from
+  // the ray's direction.
+  if (material.back_face == BackFace::flipped && !material.is_dielectric() &&
+      glm::dot(surface.geometric_normal, to_eye) < 0.0)
+    normal = -normal;
   // Texture space, float: the diffuse texture's colour at the hit (white without one; spheres
   // carry no texture coordinates).
   const Vec3d texel = texcoord && context.textures && context.textures->has_diffuse(material_id)

@@ -97,6 +97,10 @@ void validate_scene(const Scene& scene) {
         if (!std::isfinite(sphere.center.x) || !std::isfinite(sphere.center.y) || !std::isfinite(sphere.center.z) ||
             !(sphere.radius > 0.0) || !std::isfinite(sphere.radius))
           throw InputError(scene.source, where, "sphere needs a finite centre and a finite radius > 0");
+        if (scene.materials[model.material].culls_back_faces())
+          throw InputError(scene.source, where,
+                           fmt::format("sphere has material '{}' with culled back faces: culling applies to meshes only",
+                                       scene.materials[model.material].name));
         continue;
       }
       const TriangleMesh& mesh = *model.mesh;

@@ -17,7 +17,7 @@
 #include "rt/io/atomic_file.h"
 #include "rt/io/image_io.h"
 #include "rt/io/load_scene.h"
-#include "rt/render/alpha.h"
+#include "rt/render/surface_test.h"
 #include "rt/render/render.h"
 
 namespace rt::perf {
@@ -68,8 +68,8 @@ Prepared prepare(const Scene& base, const RenderConfig& config) {
 // Builds the Embree scene and renders once, timing both.
 Rendered render_with(const Prepared& prepared, const RenderConfig& config, int threads) {
   const auto start = std::chrono::steady_clock::now();
-  const SceneAlpha alpha(prepared.scene, prepared.flat);
-  const std::unique_ptr<Accel> accel = build_accel(AccelKind::embree, prepared.flat, with_alpha(config.accel, alpha));
+  const SceneSurfaceTest surface_test(prepared.scene, prepared.flat);
+  const std::unique_ptr<Accel> accel = build_accel(AccelKind::embree, prepared.flat, with_surface_test(config.accel, surface_test));
   Rendered rendered;
   rendered.build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   RenderOptions options;

@@ -73,8 +73,10 @@ Scene load_as_rt_render(const ExportArgs& args, LoadReport& report) {
 }
 
 // Camera rays through pixel centres (rt's --spp 1) that hit a triangle from behind, i.e. where
-// the ray direction points the way the geometric normal (p1 - p0) x (p2 - p0) does. rt shades
-// such hits like front faces; a one-sided BSDF (Mitsuba's diffuse) renders them black.
+// the ray direction points the way the geometric normal (p1 - p0) x (p2 - p0) does, on a
+// material whose back faces are not flipped (check-mitsuba wraps flipped ones in Mitsuba's
+// `twosided`) and not glass. rt shades such hits with their own normals (unflipped) or sees
+// through them (culled); a one-sided BSDF (Mitsuba's diffuse) renders them black.
 std::uint64_t count_back_face_hits(const Scene& scene, const FlatScene& flat) {
   if (flat.triangles.empty()) return 0;
   const std::unique_ptr<Accel> accel = build_accel(AccelKind::embree, flat);
@@ -85,6 +87,8 @@ std::uint64_t count_back_face_hits(const Scene& scene, const FlatScene& flat) {
       const Ray ray = ray_through_pixel(frame, i, j);
       const Hit hit = accel->intersect(ray);
       if (!hit.found() || flat.is_sphere(hit.primitive)) continue;
+      const Material& material = scene.materials[flat.material_of(hit.primitive)];
+      if (material.back_face == BackFace::flipped || material.is_dielectric()) continue;
       const Vec3u tri = flat.triangles[hit.primitive];
       const Vec3d p0(flat.positions[tri.x]), p1(flat.positions[tri.y]), p2(flat.positions[tri.z]);
       if (glm::dot(glm::cross(p1 - p0, p2 - p0), Vec3d(ray.direction)) > 0.0) ++back;
@@ -138,6 +142,9 @@ int run_export(const ExportArgs& args) {
     json["ior"] = material.ior;
     json["thin_walled"] = material.thin_walled;
     json["attenuation_color"] = to_json(material.attenuation_color);
+    json["back_face"] = material.back_face == BackFace::flipped ? "flipped"
+                        : material.back_face == BackFace::culled ? "culled"
+                                                                 : "unflipped";
     json["alpha"] = material.has_alpha() ? Json(material.alpha_mode == AlphaMode::mask ? "mask" : "blend") : Json(nullptr);
     json["attenuation_distance"] =
         std::isfinite(material.attenuation_distance) ? Json(material.attenuation_distance) : Json(nullptr);

@@ -19,6 +19,7 @@
 #include "rt/flatten/flatten.h"
 #include "rt/io/load_scene.h"
 #include "rt/render/render.h"
+#include "rt/render/surface_test.h"
 
 namespace rt::perf {
 
@@ -65,7 +66,8 @@ double timed_in_arena(int threads, Work&& work) {
 int run_retrace(const RetraceArgs& args) {
   const Scene scene = args.scene.empty() ? make_default_scene() : load_scene(args.scene);
   const FlatScene flat = flatten_scene(scene);
-  const std::unique_ptr<Accel> accel = build_accel(AccelKind::embree, flat);
+  const SceneSurfaceTest surface_test(scene, flat);  // alpha and culling, as rt render traces them
+  const std::unique_ptr<Accel> accel = build_accel(AccelKind::embree, flat, with_surface_test({}, surface_test));
   RenderOptions options;
   options.threads = args.threads;
 

@@ -59,19 +59,29 @@ enum class EmbreeKernel { native, watertight };
 // Options for building an Accel; the reference backends ignore the Embree ones.
 class EmbreeDevice;  // rt/accel/embree_accel.h
 
-// The scene's cut-outs and see-through surfaces (alpha), as the intersectors see them: which
-// triangles are tested, and whether a candidate hit at barycentrics (b1, b2) of triangle
-// `triangle` (FlatScene numbering) counts. Implemented by rt/render/alpha.h; thread-safe.
-class AlphaTest {
+// Which candidate hits on triangles count, as the intersectors see them: alpha cut-outs and
+// see-through surfaces, and back faces that are culled. `triangle` is in FlatScene numbering,
+// (b1, b2) are the candidate's barycentrics, and `back_face` says the ray arrives from behind
+// (see arrives_from_behind). Implemented by rt/render/surface_test.h; thread-safe.
+class SurfaceTest {
  public:
-  virtual ~AlphaTest() = default;
-  // True when hits on `triangle` need the test (its material has an alpha below 1 somewhere).
+  virtual ~SurfaceTest() = default;
+  // True when hits on `triangle` need the test (alpha below 1 somewhere, or culled back faces).
   virtual bool tested(std::uint32_t triangle) const = 0;
   // Closest-hit queries: whether the hit counts (a surface that is there at that point).
-  virtual bool hit_counts(std::uint32_t triangle, float b1, float b2) const = 0;
+  virtual bool hit_counts(std::uint32_t triangle, float b1, float b2, bool back_face) const = 0;
   // Occlusion (shadow) queries: whether the hit blocks the ray.
-  virtual bool blocks(std::uint32_t triangle, float b1, float b2) const = 0;
+  virtual bool blocks(std::uint32_t triangle, float b1, float b2, bool back_face) const = 0;
 };
+
+// Whether a ray along `direction` (world space) meets triangle `triangle` of `flat` from behind:
+// against its geometric normal (p1 - p0) x (p2 - p0), computed in double from the float32
+// vertices, so that every backend decides alike.
+inline bool arrives_from_behind(const FlatScene& flat, std::uint32_t triangle, const Vec3d& direction) {
+  const Vec3u tri = flat.triangles[triangle];
+  const Vec3d p0(flat.positions[tri.x]), p1(flat.positions[tri.y]), p2(flat.positions[tri.z]);
+  return glm::dot(glm::cross(p1 - p0, p2 - p0), direction) > 0.0;
+}
 
 struct AccelOptions {
   // RTC_SCENE_FLAG_ROBUST: Embree's watertight (Pluecker) triangle test and conservative box tests.
@@ -88,10 +98,10 @@ struct AccelOptions {
   // A device to build in, shared by the accels of a batch (make_embree_device); null: the accel
   // creates its own.
   std::shared_ptr<EmbreeDevice> embree_device;
-  // Alpha-tested triangles: Embree runs filter functions on a geometry of these alone, the
-  // reference tests them as it goes. Null: every surface is opaque; Embree also builds exactly as
-  // without alpha when no triangle is tested. Must outlive the accel.
-  const AlphaTest* alpha_test = nullptr;
+  // Tested triangles (SurfaceTest::tested): Embree runs filter functions on a geometry of these
+  // alone, the reference tests them as it goes. Null: every hit counts; Embree also builds exactly
+  // as without a test when no triangle is tested. Must outlive the accel.
+  const SurfaceTest* surface_test = nullptr;
 };
 
 // Thread-safe after construction: many threads may query one Accel concurrently.
@@ -117,8 +127,8 @@ class Accel {
 
   virtual std::string_view name() const = 0;
 
-  // The alpha test this accel was built with (AccelOptions::alpha_test), null when none.
-  virtual const AlphaTest* alpha_test() const { return nullptr; }
+  // The surface test this accel was built with (AccelOptions::surface_test), null when none.
+  virtual const SurfaceTest* surface_test() const { return nullptr; }
 };
 
 // Builds the chosen backend over `scene`, which must outlive the result (Embree shares its

@@ -50,7 +50,7 @@ class EmbreeAccel final : public Accel {
   // Packets of 16 (rtcOccluded16, coherent).
   void occluded_coherent(std::span<const Ray> rays, std::span<std::uint8_t> blocked) const override;
   bool occluded(const Ray& ray) const override;
-  const AlphaTest* alpha_test() const override;
+  const SurfaceTest* surface_test() const override;
   std::string_view name() const override { return "embree"; }
 
   // Bytes Embree's device holds now (net of frees; the BVH, builder arenas and device state),

@@ -49,15 +49,15 @@ enum class ReferenceTest { watertight, barycentric };
 // primitive index wins.
 class ReferenceAccel final : public Accel {
  public:
-  // `alpha` (may be null) must outlive the accel.
-  ReferenceAccel(const FlatScene& scene, ReferenceTest test, const AlphaTest* alpha = nullptr);
+  // `surface_test` (may be null) must outlive the accel.
+  ReferenceAccel(const FlatScene& scene, ReferenceTest test, const SurfaceTest* surface_test = nullptr);
 
   Hit intersect(const Ray& ray) const override;
   bool occluded(const Ray& ray) const override;
   std::string_view name() const override {
     return test_ == ReferenceTest::watertight ? "reference" : "reference-barycentric";
   }
-  const AlphaTest* alpha_test() const override { return alpha_; }
+  const SurfaceTest* surface_test() const override { return surface_test_; }
 
  private:
   struct TriangleD {
@@ -65,9 +65,11 @@ class ReferenceAccel final : public Accel {
   };
   bool intersect_one(const TriangleD& tri, const Vec3d& origin, const Vec3d& direction, double tnear, double tfar,
                      TriangleHitD& hit) const;
+  // Whether `hit` on triangle `triangle` counts for a ray along `direction` (occlusion: blocks it).
+  bool counts(std::uint32_t triangle, const Vec3d& direction, const TriangleHitD& hit, bool occlusion) const;
 
   ReferenceTest test_;
-  const AlphaTest* alpha_ = nullptr;  // may be null
+  const SurfaceTest* surface_test_ = nullptr;  // may be null
   std::vector<TriangleD> triangles_;
   std::vector<FlatSphere> spheres_;
 };

@@ -1,7 +1,7 @@
 #pragma once
 // glTF 2.0 scenes (.gltf with external or embedded buffers, binary .glb) through tinygltf.
 // What is read, how PBR materials and light units map to ours, and what is skipped:
-// docs/input-formats.md.
+// docs/scene-formats.md.
 
 #include <optional>
 #include <string>

@@ -1,6 +1,6 @@
 #pragma once
 // Wavefront OBJ (+ MTL): single meshes for the JSON format's "obj" geometry, and whole OBJ scenes
-// for `rt render FILE.obj` (docs/input-formats.md). The OBJ is parsed here, in parallel chunks,
+// for `rt render FILE.obj` (docs/scene-formats.md). The OBJ is parsed here, in parallel chunks,
 // with tinyobjloader's semantics; MTL libraries go through tinyobjloader.
 
 #include <cstddef>

@@ -1,7 +1,7 @@
 #pragma once
 // Loader for the CSE167x / CS184.1x ray-tracer scene format (".test" files): one command per
 // line, OpenGL-style transform stack, material and attenuation as current state captured by
-// each primitive. See docs/input-formats.md for the command-by-command mapping onto the scene
+// each primitive. See docs/scene-formats.md for the command-by-command mapping onto the scene
 // graph.
 
 #include <string>

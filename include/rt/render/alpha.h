@@ -1,13 +1,12 @@
 #pragma once
 // Alpha: cut-outs (mask) and see-through surfaces (blend) of a scene's materials, evaluated at
-// hits for the intersectors (the AlphaTest they run in Embree filter functions and in the
-// reference) and for the shader (a blend surface's weight). docs/alpha.md.
+// hits for the intersectors (through the SurfaceTest of rt/render/surface_test.h) and for the
+// shader (a blend surface's weight). docs/alpha.md.
 
 #include <atomic>
 #include <cstdint>
 #include <vector>
 
-#include "rt/accel/accel.h"
 #include "rt/flatten/flatten.h"
 #include "rt/scene/scene.h"
 
@@ -15,19 +14,21 @@ namespace rt {
 
 // The alpha of every material of `scene` with Material::has_alpha, textures decoded to one float
 // per texel when constructed. Thread-safe after construction.
-class SceneAlpha final : public AlphaTest {
+class SceneAlpha {
  public:
   SceneAlpha(const Scene& scene, const FlatScene& flat);
 
   // True when some triangle is tested (else building an accel with it changes nothing).
   bool any() const { return any_; }
 
-  bool tested(std::uint32_t triangle) const override { return materials_[flat_.material_ids[triangle]].tested; }
-  // Mask: alpha >= cutoff. Blend: alpha > 0 (the shader weighs the rest).
-  bool hit_counts(std::uint32_t triangle, float b1, float b2) const override;
-  // Mask: alpha >= cutoff. Blend: alpha >= 1/2, a deterministic stand-in for the fraction a
-  // blended surface would let through (docs/alpha.md).
-  bool blocks(std::uint32_t triangle, float b1, float b2) const override;
+  // True when hits on `triangle` need the test: its material has an alpha below 1 somewhere.
+  bool tested(std::uint32_t triangle) const { return materials_[flat_.material_ids[triangle]].tested; }
+  // Closest-hit queries on a tested triangle. Mask: alpha >= cutoff. Blend: alpha > 0 (the shader
+  // weighs the rest).
+  bool hit_counts(std::uint32_t triangle, float b1, float b2) const;
+  // Occlusion queries on a tested triangle. Mask: alpha >= cutoff. Blend: alpha >= 1/2, a
+  // deterministic stand-in for the fraction a blended surface would let through (docs/alpha.md).
+  bool blocks(std::uint32_t triangle, float b1, float b2) const;
 
   // The alpha of primitive `primitive` (a triangle, or a sphere: its material's constant) at
   // barycentrics (b1, b2), in [0, 1].
@@ -54,12 +55,5 @@ class SceneAlpha final : public AlphaTest {
   bool any_ = false;
   mutable std::atomic<std::uint64_t> calls_{0};
 };
-
-// `options` with `alpha` as the alpha test when some triangle needs one (else unchanged, and the
-// accel is built exactly as without alpha).
-inline AccelOptions with_alpha(AccelOptions options, const SceneAlpha& alpha) {
-  if (alpha.any()) options.alpha_test = &alpha;
-  return options;
-}
 
 }  // namespace rt

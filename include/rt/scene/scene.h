@@ -41,6 +41,14 @@ enum class AlphaMode {
   blend,   // seen with weight alpha, the rest of the ray going on straight (no bending)
 };
 
+// How a surface is seen from behind: from the side its geometric normal (p1 - p0) x (p2 - p0)
+// points away from (docs/scene-formats.md, "Front and back faces").
+enum class BackFace {
+  unflipped,  // shaded with its own normals, which face away (the course's: .test, native default)
+  flipped,    // shaded with the normals turned towards the viewer (glTF doubleSided, OBJ)
+  culled,     // not there: rays of every kind pass it (glTF single-sided); triangles only
+};
+
 // Phong / Blinn-Phong material of the seed's FindColor. Colours are linear RGB in [0, inf).
 struct Material {
   std::string name;
@@ -93,6 +101,13 @@ struct Material {
   float alpha_cutoff = 0.5f;  // mask only
   Texture alpha_texture;
   bool alpha_from_grey = false;
+
+  // How back faces are seen. Dielectrics ignore it: their two sides are the two sides of an
+  // interface (docs/glass.md).
+  BackFace back_face = BackFace::unflipped;
+  // Whether hits on triangles of this material are culled from behind.
+  bool culls_back_faces() const { return back_face == BackFace::culled && !is_dielectric(); }
+
   // Whether hits need an alpha test: a mask or blend mode with an alpha below 1 somewhere.
   bool has_alpha() const { return alpha_mode != AlphaMode::opaque && (alpha < 1.0f || !alpha_texture.empty()); }
 
