@@ -133,10 +133,10 @@ TEST_CASE("textures: a half-transparent texel keeps its colour (alpha is not mul
   const rt::TextureSampler textures(scene);
   REQUIRE(textures.has_diffuse(0));
   // Texel 0's centre: sRGB (255, 0, 0) is linear 1, whatever its alpha of 128 / 255.
-  const rt::Color red = textures.diffuse(0, rt::Vec2f(0.25f, 0.5f));
+  const rt::Color red = textures.diffuse(0, rt::TexCoords{rt::Vec2f(0.25f, 0.5f)});
   CHECK(red.r == Approx(1.0f).epsilon(1e-5));
   CHECK(red.g == Approx(0.0f).margin(1e-6));
-  const rt::Color green = textures.diffuse(0, rt::Vec2f(0.75f, 0.5f));
+  const rt::Color green = textures.diffuse(0, rt::TexCoords{rt::Vec2f(0.75f, 0.5f)});
   CHECK(green.g == Approx(1.0f).epsilon(1e-5));
   // The mean the glTF loader uses for highlights is unassociated too.
   const auto mean = rt::texture_mean(m.diffuse_texture);

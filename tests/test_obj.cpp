@@ -432,8 +432,8 @@ TEST_CASE("OBJ scene: map_Kd is sampled at the vt coordinates, v = 1 at the imag
   CHECK(mesh.texcoords[0] == rt::Vec2f(0, 1));
   const rt::TextureSampler sampler(scene);
   REQUIRE(sampler.has_diffuse(0));
-  CHECK(sampler.diffuse(0, {0.5f, 0.25f}) == rt::Color(1, 0, 0));
-  CHECK(sampler.diffuse(0, {0.5f, 0.75f}) == rt::Color(0, 1, 0));
+  CHECK(sampler.diffuse(0, {rt::Vec2f(0.5f, 0.25f)}) == rt::Color(1, 0, 0));
+  CHECK(sampler.diffuse(0, {rt::Vec2f(0.5f, 0.75f)}) == rt::Color(0, 1, 0));
 }
 
 namespace {

@@ -53,6 +53,16 @@ void append_sphere(const Scene& scene, std::uint32_t node_index, const Model& mo
   flat.spheres.push_back(sphere);
 }
 
+// Appends `from` (one value per vertex of the model whose first vertex is `base`) to the
+// scene-wide attribute `to`, which is empty until some model has the attribute; the vertices of
+// earlier models without it get `fallback`.
+template <class T>
+void append_attribute(std::vector<T>& to, std::size_t base, const std::vector<T>& from, const T& fallback) {
+  if (from.empty()) return;
+  to.resize(base, fallback);
+  to.insert(to.end(), from.begin(), from.end());
+}
+
 void append_model(const Scene& scene, std::uint32_t node_index, const Model& model, const Mat4d& world_from_object,
                   FlatScene& flat) {
   const TriangleMesh* mesh = model.mesh.get();
@@ -84,13 +94,24 @@ void append_model(const Scene& scene, std::uint32_t node_index, const Model& mod
     flat.positions.push_back(p);
     flat.normals.push_back(unit_n);
   }
-  if (!mesh->texcoords.empty()) {
-    flat.texcoords.resize(base, Vec2f(0.0f));
-    flat.texcoords.insert(flat.texcoords.end(), mesh->texcoords.begin(), mesh->texcoords.end());
-  }
+  append_attribute(flat.texcoords, base, mesh->texcoords, Vec2f(0.0f));
+  append_attribute(flat.texcoords1, base, mesh->texcoords1, Vec2f(0.0f));
+  append_attribute(flat.colors, base, mesh->colors, Vec4f(1.0f));
   // A mirroring transform reverses the orientation of (p1 - p0) x (p2 - p0) but not of the
   // inverse-transposed normals; swapping two indices restores their agreement.
   const bool flip = det < 0.0;
+  if (!mesh->tangents.empty()) {
+    // Tangents lie in the surface: they transform by the linear part itself. A mirror reverses
+    // cross(normal, tangent), so the handedness turns too.
+    const Mat3d linear(world_from_object);
+    flat.tangents.resize(base, Vec4f(0.0f));
+    for (const Vec4f& t : mesh->tangents) {
+      const Vec3d world = linear * Vec3d(t);
+      const double length = glm::length(world);
+      flat.tangents.emplace_back(length > 0.0 && std::isfinite(length) ? Vec3f(world / length) : Vec3f(0.0f),
+                                 flip ? -t.w : t.w);
+    }
+  }
   for (const Vec3u& t : mesh->triangles) {
     // Zero area exactly: the cross product of the float32 world positions' edges, in double.
     const Vec3d p0(flat.positions[base + t.x]), p1(flat.positions[base + t.y]), p2(flat.positions[base + t.z]);
@@ -186,7 +207,11 @@ FlatScene flatten_scene(const Scene& scene, const FlattenOptions& options) {
     for (auto child = node.children.rbegin(); child != node.children.rend(); ++child)
       stack.push_back({*child, entry.world_from_node * scene.nodes[*child].parent_from_node});
   }
+  // Vertices of the models after the last one with an attribute get its fallback too.
   if (!flat.texcoords.empty()) flat.texcoords.resize(flat.positions.size(), Vec2f(0.0f));
+  if (!flat.texcoords1.empty()) flat.texcoords1.resize(flat.positions.size(), Vec2f(0.0f));
+  if (!flat.colors.empty()) flat.colors.resize(flat.positions.size(), Vec4f(1.0f));
+  if (!flat.tangents.empty()) flat.tangents.resize(flat.positions.size(), Vec4f(0.0f));
   // Keep one spare slot so Embree's 16-byte load of the last vertex stays inside the allocation.
   if (flat.positions.capacity() < flat.positions.size() + 1) flat.positions.reserve(flat.positions.size() + 1);
   return flat;

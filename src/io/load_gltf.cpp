@@ -19,6 +19,8 @@
 #include "rt/core/error.h"
 #include "rt/core/memory.h"
 #include "rt/render/texture.h"
+#include "rt/scene/metallic_roughness.h"
+#include "rt/scene/tangents.h"
 
 namespace rt {
 
@@ -27,8 +29,6 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-// Roughness at and above which a surface gets no mirror reflection (see docs/scene-formats.md).
-constexpr double kMirrorRoughness = 0.3;
 // Largest accessor element count accepted (keeps a malformed count from exhausting memory).
 constexpr std::size_t kMaxAccessorCount = std::size_t(1) << 28;
 // Image size used when a perspective camera gives an aspect ratio: height fixed, width follows.
@@ -97,7 +97,8 @@ class GltfReader {
                                   std::size_t element_size, const std::string& where) const;
   std::vector<double> read_accessor(int index, const std::string& where, int components);
   std::vector<std::uint32_t> read_indices(int index, const std::string& where, std::size_t vertex_count);
-  std::shared_ptr<const TriangleMesh> read_primitive(int mesh, int primitive, bool want_texcoords);
+  // The primitive's mesh with the attributes `material` reads (tangents generated when it is normal-mapped).
+  std::shared_ptr<const TriangleMesh> read_primitive(int mesh, int primitive, const Material& material);
   const std::vector<Model>& models_of_mesh(int mesh);
   std::uint32_t material_index(int material);
   Material read_material(int index);
@@ -257,7 +258,8 @@ std::vector<std::uint32_t> GltfReader::read_indices(int index, const std::string
   return indices;
 }
 
-std::shared_ptr<const TriangleMesh> GltfReader::read_primitive(int mesh_index, int primitive_index, bool want_texcoords) {
+std::shared_ptr<const TriangleMesh> GltfReader::read_primitive(int mesh_index, int primitive_index,
+                                                              const Material& material) {
   const tinygltf::Primitive& primitive =
       gltf_.meshes[static_cast<std::size_t>(mesh_index)].primitives[static_cast<std::size_t>(primitive_index)];
   const std::string where = child(child(child("/meshes", static_cast<std::size_t>(mesh_index)), "primitives"),
@@ -270,20 +272,40 @@ std::shared_ptr<const TriangleMesh> GltfReader::read_primitive(int mesh_index, i
   if (position_accessor < 0) fail(child(where, "attributes"), "primitive has no POSITION attribute");
   const std::vector<double> positions = read_accessor(position_accessor, child(where, "attributes/POSITION"), 3);
   const std::size_t vertex_count = positions.size() / 3;
-  std::vector<double> normals, texcoords;
-  if (attribute("NORMAL") >= 0) {
-    normals = read_accessor(attribute("NORMAL"), child(where, "attributes/NORMAL"), 3);
-    if (normals.size() != positions.size())
-      fail(child(where, "attributes/NORMAL"),
-           fmt::format("{} normals for {} positions", normals.size() / 3, vertex_count));
+  // An attribute with `components` numbers per vertex, or nothing when absent.
+  const auto read_vertex_attribute = [&](const char* name, int components) {
+    std::vector<double> values;
+    if (attribute(name) < 0) return values;
+    const std::string at = child(where, std::string("attributes/") + name);
+    values = read_accessor(attribute(name), at, components);
+    if (values.size() / std::size_t(components) != vertex_count)
+      fail(at, fmt::format("{} values for {} positions", values.size() / std::size_t(components), vertex_count));
+    return values;
+  };
+  // Which coordinate sets the material's textures read, and whether it is normal-mapped.
+  bool wants_set[2] = {false, false};
+  for (const Texture* texture : {&material.diffuse_texture, &material.emission_texture, &material.transmission_texture,
+                                 &material.normal_texture, &material.occlusion_texture, &material.alpha_texture})
+    if (!texture->empty()) wants_set[texture->texcoord] = true;
+  if (material.metallic_roughness && !material.metallic_roughness->texture.empty())
+    wants_set[material.metallic_roughness->texture.texcoord] = true;
+  const bool normal_mapped = !material.normal_texture.empty();
+
+  const std::vector<double> normals = read_vertex_attribute("NORMAL", 3);
+  const std::vector<double> texcoords = wants_set[0] ? read_vertex_attribute("TEXCOORD_0", 2) : std::vector<double>{};
+  const std::vector<double> texcoords1 = wants_set[1] ? read_vertex_attribute("TEXCOORD_1", 2) : std::vector<double>{};
+  // COLOR_0 is RGB or RGBA (linear; float or normalised integers).
+  std::vector<double> colors;
+  int color_components = 4;
+  if (attribute("COLOR_0") >= 0) {
+    const tinygltf::Accessor& accessor = element(gltf_.accessors, attribute("COLOR_0"), "accessor",
+                                                 child(where, "attributes/COLOR_0"));
+    color_components = accessor.type == TINYGLTF_TYPE_VEC3 ? 3 : 4;
+    colors = read_vertex_attribute("COLOR_0", color_components);
   }
-  if (want_texcoords && attribute("TEXCOORD_0") >= 0) {
-    texcoords = read_accessor(attribute("TEXCOORD_0"), child(where, "attributes/TEXCOORD_0"), 2);
-    if (texcoords.size() / 2 != vertex_count)
-      fail(child(where, "attributes/TEXCOORD_0"),
-           fmt::format("{} texcoords for {} positions", texcoords.size() / 2, vertex_count));
-  }
-  if (attribute("COLOR_0") >= 0) count("COLOR_0 vertex colours are ignored");
+  // TANGENT only matters under a normal map, and only with the normals it was made for.
+  const std::vector<double> tangents =
+      normal_mapped && !normals.empty() ? read_vertex_attribute("TANGENT", 4) : std::vector<double>{};
 
   std::vector<std::uint32_t> indices;
   if (primitive.indices >= 0) {
@@ -311,14 +333,27 @@ std::shared_ptr<const TriangleMesh> GltfReader::read_primitive(int mesh_index, i
 
   auto mesh = std::make_shared<TriangleMesh>();
   const auto position = [&](std::uint32_t i) { return Vec3f(Vec3d(positions[3 * i], positions[3 * i + 1], positions[3 * i + 2])); };
-  const auto texcoord = [&](std::uint32_t i) { return Vec2f(Vec2d(texcoords[2 * i], texcoords[2 * i + 1])); };
+  // Vertex i's optional attributes, appended to the mesh.
+  const auto append_attributes = [&](std::uint32_t i) {
+    if (!texcoords.empty()) mesh->texcoords.push_back(Vec2f(Vec2d(texcoords[2 * i], texcoords[2 * i + 1])));
+    if (!texcoords1.empty()) mesh->texcoords1.push_back(Vec2f(Vec2d(texcoords1[2 * i], texcoords1[2 * i + 1])));
+    if (!colors.empty()) {
+      const std::size_t c = std::size_t(color_components) * i;
+      const auto unit = [](double v) { return static_cast<float>(std::clamp(v, 0.0, 1.0)); };  // the spec's range
+      mesh->colors.emplace_back(unit(colors[c]), unit(colors[c + 1]), unit(colors[c + 2]),
+                                color_components == 4 ? unit(colors[c + 3]) : 1.0f);
+    }
+    if (!tangents.empty())
+      mesh->tangents.emplace_back(float(tangents[4 * i]), float(tangents[4 * i + 1]), float(tangents[4 * i + 2]),
+                                  tangents[4 * i + 3] < 0.0 ? -1.0f : 1.0f);
+  };
   if (!normals.empty()) {
-    for (std::size_t i = 0; i < vertex_count; ++i) {
-      mesh->positions.push_back(position(static_cast<std::uint32_t>(i)));
+    for (std::uint32_t i = 0; i < vertex_count; ++i) {
+      mesh->positions.push_back(position(i));
       const Vec3d normal(normals[3 * i], normals[3 * i + 1], normals[3 * i + 2]);
       const double length = glm::length(normal);
       mesh->normals.push_back(length > 0.0 ? Vec3f(normal / length) : Vec3f(0.0f, 0.0f, 1.0f));
-      if (!texcoords.empty()) mesh->texcoords.push_back(texcoord(static_cast<std::uint32_t>(i)));
+      append_attributes(i);
     }
     mesh->triangles = std::move(corners);
   } else {
@@ -332,9 +367,20 @@ std::shared_ptr<const TriangleMesh> GltfReader::read_primitive(int mesh_index, i
       for (std::uint32_t corner : {t.x, t.y, t.z}) {
         mesh->positions.push_back(position(corner));
         mesh->normals.push_back(normal);
-        if (!texcoords.empty()) mesh->texcoords.push_back(texcoord(corner));
+        append_attributes(corner);
       }
       mesh->triangles.push_back({base, base + 1, base + 2});
+    }
+  }
+  // The spec: without TANGENT, MikkTSpace tangents from the normal texture's coordinates.
+  if (normal_mapped && mesh->tangents.empty()) {
+    const bool set1 = material.normal_texture.texcoord == 1;
+    if ((set1 ? mesh->texcoords1 : mesh->texcoords).empty()) {
+      count("normal maps on primitives without their texture coordinates ignored");
+    } else {
+      if (set1) std::swap(mesh->texcoords, mesh->texcoords1);
+      if (generate_tangents(*mesh) > 0) count("triangles with degenerate texture coordinates left flat under normal maps");
+      if (set1) std::swap(mesh->texcoords, mesh->texcoords1);
     }
   }
   return mesh;
@@ -356,8 +402,7 @@ const std::vector<Model>& GltfReader::models_of_mesh(int mesh_index) {
       element(gltf_.materials, primitive.material, "material",
               child(child(child(child("/meshes", static_cast<std::size_t>(mesh_index)), "primitives"), p), "material"));
     const std::uint32_t material = material_index(primitive.material);
-    const bool textured = !materials_[material].diffuse_texture.empty();
-    models.push_back({read_primitive(mesh_index, static_cast<int>(p), textured), material});
+    models.push_back({read_primitive(mesh_index, static_cast<int>(p), materials_[material]), material});
   }
   return mesh_models_[mesh_index] = std::move(models);
 }
@@ -368,12 +413,47 @@ std::uint32_t GltfReader::material_index(int material) {
   return material_of_[material] = static_cast<std::uint32_t>(materials_.size() - 1);
 }
 
+// A TextureInfo for the index, texCoord and extensions of a normal or occlusion texture info.
+tinygltf::TextureInfo texture_info(int index, int texcoord, const tinygltf::ExtensionMap& extensions) {
+  tinygltf::TextureInfo info;
+  info.index = index;
+  info.texCoord = texcoord;
+  info.extensions = extensions;
+  return info;
+}
+
 Texture GltfReader::read_texture(const tinygltf::TextureInfo& info, const std::string& where) {
-  if (info.texCoord != 0) {
-    count("base-colour textures on TEXCOORD_1 or higher not applied (only TEXCOORD_0 is read)");
+  int texcoord = info.texCoord;
+  TextureTransform transform;
+  if (auto it = info.extensions.find("KHR_texture_transform"); it != info.extensions.end()) {
+    const tinygltf::Value& extension = it->second;
+    const std::string at = child(where, "extensions/KHR_texture_transform");
+    const auto pair = [&](const char* key, Vec2f fallback) {
+      if (!extension.Has(key)) return fallback;
+      const tinygltf::Value& value = extension.Get(key);
+      if (!value.IsArray() || value.ArrayLen() != 2 || !value.Get(0).IsNumber() || !value.Get(1).IsNumber())
+        fail(child(at, key), "expected 2 numbers");
+      const Vec2f result(float(value.Get(0).GetNumberAsDouble()), float(value.Get(1).GetNumberAsDouble()));
+      if (!std::isfinite(result.x) || !std::isfinite(result.y)) fail(child(at, key), "expected finite numbers");
+      return result;
+    };
+    transform.offset = pair("offset", Vec2f(0.0f));
+    transform.scale = pair("scale", Vec2f(1.0f));
+    if (extension.Has("rotation")) {
+      if (!extension.Get("rotation").IsNumber()) fail(child(at, "rotation"), "expected a number");
+      transform.rotation = float(extension.Get("rotation").GetNumberAsDouble());
+      if (!std::isfinite(transform.rotation)) fail(child(at, "rotation"), "expected a finite number");
+    }
+    if (extension.Has("texCoord")) {  // overrides the textureInfo's
+      if (!extension.Get("texCoord").IsInt()) fail(child(at, "texCoord"), "expected an integer");
+      texcoord = extension.Get("texCoord").GetNumberAsInt();
+    }
+  }
+  if (texcoord < 0) fail(child(where, "texCoord"), fmt::format("{} is negative", texcoord));
+  if (texcoord > 1) {
+    count("textures on TEXCOORD_2 or higher not applied (TEXCOORD_0 and TEXCOORD_1 are read)");
     return {};
   }
-  if (info.extensions.count("KHR_texture_transform")) count("KHR_texture_transform ignored (textures used untransformed)");
   const tinygltf::Texture& texture = element(gltf_.textures, info.index, "texture", child(where, "index"));
   const std::string texture_at = child("/textures", static_cast<std::size_t>(info.index));
   if (texture.source < 0) {
@@ -411,6 +491,8 @@ Texture GltfReader::read_texture(const tinygltf::TextureInfo& info, const std::s
     result.wrap_s = wrap(sampler.wrapS);
     result.wrap_t = wrap(sampler.wrapT);
   }
+  result.texcoord = texcoord;
+  result.transform = transform;
   auto [readable, inserted] = image_readable_.try_emplace(texture.source, true);
   if (inserted) {
     std::string reason;
@@ -496,12 +578,14 @@ void GltfReader::read_transmission(const tinygltf::Material& source, const std::
 Material GltfReader::read_material(int index) {
   Material material;
   if (index < 0) {
+    // The spec's default: white base colour, metallic 1, roughness 1, single-sided.
     material.name = "<default>";
-    material.diffuse = Color(0.0f);  // the spec's default: white base colour, metallic 1, roughness 1
-    material.specular = Color(1.0f);
-    material.shininess = 1.0f;
-    material.reflective = Color(0.0f);
-    material.back_face = BackFace::culled;  // doubleSided defaults to false
+    const PhongTerms terms = phong_from_metallic_roughness(Vec3d(1.0), 1.0, 1.0, 0.04);
+    material.diffuse = Color(terms.diffuse);
+    material.specular = Color(terms.specular);
+    material.shininess = static_cast<float>(terms.shininess);
+    material.reflective = Color(terms.reflective);
+    material.back_face = BackFace::culled;
     return material;
   }
   const tinygltf::Material& source = gltf_.materials[static_cast<std::size_t>(index)];
@@ -510,25 +594,28 @@ Material GltfReader::read_material(int index) {
   material.name = source.name.empty() ? fmt::format("material {}", index) : source.name;
   if (pbr.baseColorFactor.size() != 4) fail(child(at, "pbrMetallicRoughness/baseColorFactor"), "expected 4 numbers");
   Vec3d base(pbr.baseColorFactor[0], pbr.baseColorFactor[1], pbr.baseColorFactor[2]);
-  double metallic = std::clamp(pbr.metallicFactor, 0.0, 1.0), roughness = std::clamp(pbr.roughnessFactor, 0.0, 1.0);
-  Vec3d specular_base = base;  // the base colour the (untextured) highlight uses
-  if (pbr.baseColorTexture.index >= 0) {
+  const double metallic = std::clamp(pbr.metallicFactor, 0.0, 1.0), roughness = std::clamp(pbr.roughnessFactor, 0.0, 1.0);
+  if (pbr.baseColorTexture.index >= 0)
     material.diffuse_texture = read_texture(pbr.baseColorTexture, child(at, "pbrMetallicRoughness/baseColorTexture"));
-    if (!material.diffuse_texture.empty())
-      if (const auto mean = texture_mean(material.diffuse_texture))
-        specular_base *= Vec3d(glm::pow(Vec3f(*mean), Vec3f(2.2f)));
+  Texture metallic_roughness_texture;
+  if (pbr.metallicRoughnessTexture.index >= 0)
+    metallic_roughness_texture =
+        read_texture(pbr.metallicRoughnessTexture, child(at, "pbrMetallicRoughness/metallicRoughnessTexture"));
+  if (source.normalTexture.index >= 0) {
+    material.normal_texture =
+        read_texture(texture_info(source.normalTexture.index, source.normalTexture.texCoord, source.normalTexture.extensions),
+                     child(at, "normalTexture"));
+    material.normal_scale = static_cast<float>(source.normalTexture.scale);
+    if (!std::isfinite(material.normal_scale)) fail(child(at, "normalTexture/scale"), "expected a finite number");
   }
-  if (pbr.metallicRoughnessTexture.index >= 0) {
-    // Not sampled per hit: its mean stands in (green = roughness, blue = metallic).
-    Texture texture = read_texture(pbr.metallicRoughnessTexture, child(at, "pbrMetallicRoughness/metallicRoughnessTexture"));
-    if (const auto mean = texture.empty() ? std::nullopt : texture_mean(texture)) {
-      roughness *= mean->g;
-      metallic *= mean->b;
-    }
-    count("metallic-roughness textures replaced by their mean value");
+  if (source.occlusionTexture.index >= 0) {
+    material.occlusion_texture = read_texture(
+        texture_info(source.occlusionTexture.index, source.occlusionTexture.texCoord, source.occlusionTexture.extensions),
+        child(at, "occlusionTexture"));
+    material.occlusion_strength = static_cast<float>(source.occlusionTexture.strength);
+    if (!(material.occlusion_strength >= 0.0f && material.occlusion_strength <= 1.0f))
+      fail(child(at, "occlusionTexture/strength"), fmt::format("{} is outside [0, 1]", material.occlusion_strength));
   }
-  if (source.normalTexture.index >= 0) count("normal maps ignored");
-  if (source.occlusionTexture.index >= 0) count("occlusion maps ignored");
   read_alpha(source, at, material);
   // The spec: a single-sided material's back faces are culled; a double-sided one's are lit with
   // the normal reversed.
@@ -543,16 +630,26 @@ Material GltfReader::read_material(int index) {
       fail(child(at, "extensions/KHR_materials_ior/ior"), fmt::format("ior {} is outside [1, 10]", ior));
   }
   const double dielectric_f0 = ((ior - 1.0) / (ior + 1.0)) * ((ior - 1.0) / (ior + 1.0));
-  const Vec3d f0 = glm::mix(Vec3d(dielectric_f0), specular_base, metallic);
-  const double alpha = roughness * roughness;
-  material.diffuse = Color(base * (1.0 - metallic + metallic * roughness));
-  material.specular = Color(f0 * (1.0 - metallic * roughness));
-  material.shininess = static_cast<float>(std::clamp(2.0 / std::max(alpha * alpha, 1e-8) - 2.0, 1.0, 1e4));
-  material.reflective = Color(f0 * std::max(0.0, 1.0 - roughness / kMirrorRoughness));
+  const PhongTerms terms = phong_from_metallic_roughness(base, metallic, roughness, dielectric_f0);
+  material.diffuse = Color(terms.diffuse);
+  material.specular = Color(terms.specular);
+  material.shininess = static_cast<float>(terms.shininess);
+  material.reflective = Color(terms.reflective);
+  // Per hit where the terms vary: with a metallic-roughness texture, or a metal whose base colour
+  // varies (its highlight and mirror take that colour). A dielectric's vary only in the diffuse
+  // term, which the diffuse texture and vertex colours multiply on the constant path.
+  if (!metallic_roughness_texture.empty() || (metallic > 0.0 && !material.diffuse_texture.empty())) {
+    MetallicRoughness inputs;
+    inputs.base_color = Color(base);
+    inputs.metallic = static_cast<float>(metallic);
+    inputs.roughness = static_cast<float>(roughness);
+    inputs.dielectric_f0 = static_cast<float>(dielectric_f0);
+    inputs.texture = metallic_roughness_texture;
+    material.metallic_roughness = inputs;
+  }
 
-  // A metallic-roughness texture stands in by its mean, which would dim the glass everywhere;
-  // there the transmission texture alone says where the glass is.
-  read_transmission(source, at, base, pbr.metallicRoughnessTexture.index >= 0 ? 0.0 : metallic, ior, material);
+  // Per hit, the shader weights the glass share by 1 - metallic itself.
+  read_transmission(source, at, base, material.metallic_roughness ? 0.0 : metallic, ior, material);
 
   if (source.emissiveFactor.size() != 3) fail(child(at, "emissiveFactor"), "expected 3 numbers");
   Vec3d emission(source.emissiveFactor[0], source.emissiveFactor[1], source.emissiveFactor[2]);

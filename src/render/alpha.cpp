@@ -36,9 +36,9 @@ SceneAlpha::SceneAlpha(const Scene& scene, const FlatScene& flat) : flat_(flat),
     alpha.mode = material.alpha_mode;
     alpha.constant = std::clamp(material.alpha, 0.0f, 1.0f);
     alpha.cutoff = material.alpha_cutoff;
-    alpha.wrap_s = material.alpha_texture.wrap_s;
-    alpha.wrap_t = material.alpha_texture.wrap_t;
-    if (!material.alpha_texture.empty() && !flat.texcoords.empty())
+    alpha.lookup = material.alpha_texture;
+    alpha.lookup.encoded = nullptr;  // only the wrap modes, the coordinate set and the transform are read
+    if (!material.alpha_texture.empty() && has_texcoords(flat))
       if (auto image = oiio_module().read_alpha(material.alpha_texture, material.alpha_from_grey)) {
         alpha.width = image->width;
         alpha.height = image->height;
@@ -59,10 +59,9 @@ double SceneAlpha::alpha_at(std::uint32_t primitive, float b1, float b2) const {
 double SceneAlpha::triangle_alpha(const MaterialAlpha& alpha, std::uint32_t triangle, float b1, float b2) const {
   if (alpha.width == 0) return alpha.constant;
   // Texture space, float, interpolated as the shader interpolates the hit's coordinates.
-  const Vec3u tri = flat_.triangles[triangle];
   const double b0 = 1.0 - double(b1) - double(b2);
-  const Vec2f uv = float(b0) * flat_.texcoords[tri.x] + b1 * flat_.texcoords[tri.y] + b2 * flat_.texcoords[tri.z];
-  const int x = texel_index(uv.x, alpha.width, alpha.wrap_s), y = texel_index(uv.y, alpha.height, alpha.wrap_t);
+  const Vec2f uv = alpha.lookup.lookup_uv(texcoords_at(flat_, triangle, float(b0), b1, b2));
+  const int x = texel_index(uv.x, alpha.width, alpha.lookup.wrap_s), y = texel_index(uv.y, alpha.height, alpha.lookup.wrap_t);
   return std::clamp(double(alpha.constant) * alpha.texels[std::size_t(y) * std::size_t(alpha.width) + std::size_t(x)],
                     0.0, 1.0);
 }

@@ -46,17 +46,16 @@ constexpr double kTextureWeightFloor = 0.01;
 // no texture the sampler can read, or the scene no texture coordinates. Lookups in parallel, each
 // triangle's its own, so the result does not depend on the thread count.
 std::vector<double> estimate_texture_means(const Emitter& emitter, const FlatScene& flat, const TextureSampler* textures) {
-  if (!textures || !textures->has_emission(emitter.material) || flat.texcoords.empty()) return {};
+  if (!textures || !textures->has_emission(emitter.material) || !has_texcoords(flat)) return {};
   constexpr float kCorner = 2.0f / 3.0f, kOther = 1.0f / 6.0f, kThird = 1.0f / 3.0f;
   const Vec3f points[4] = {Vec3f(kThird), Vec3f(kCorner, kOther, kOther), Vec3f(kOther, kCorner, kOther),
                            Vec3f(kOther, kOther, kCorner)};
   std::vector<double> means(emitter.triangles.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, means.size(), 256), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t i = r.begin(); i != r.end(); ++i) {
-      const Vec3u tri = flat.triangles[emitter.triangles[i].primitive];
       double sum = 0.0;
       for (const Vec3f& b : points) {
-        const Vec2f uv = b.x * flat.texcoords[tri.x] + b.y * flat.texcoords[tri.y] + b.z * flat.texcoords[tri.z];
+        const TexCoords uv = texcoords_at(flat, emitter.triangles[i].primitive, b.x, b.y, b.z);
         const Vec3d texel(textures->emission(emitter.material, uv));
         sum += 0.2126 * texel.r + 0.7152 * texel.g + 0.0722 * texel.b;  // Rec. 709 luminance
       }
@@ -222,11 +221,8 @@ LightSample EmitterSampler::sample(Vec2d u) {
   if (!(cos_emitter > 0.0)) return sample;  // the triangle's back faces the point: no radiance
 
   const Vec3d radiance(scene_.materials[emitter_.material].emission);
-  if (textures_ && textures_->has_emission(emitter_.material) && !flat_.texcoords.empty()) {
-    const Vec3u tri = flat_.triangles[t.primitive];
-    sample.texcoord = float(b.x) * flat_.texcoords[tri.x] + float(b.y) * flat_.texcoords[tri.y] +
-                      float(b.z) * flat_.texcoords[tri.z];
-  }
+  if (textures_ && textures_->has_emission(emitter_.material) && has_texcoords(flat_))
+    sample.texcoord = texcoords_at(flat_, t.primitive, float(b.x), float(b.y), float(b.z));
   // Solid-angle density of the direction: probability / solid angle, or by area
   // probability / area * r^2 / cos(theta') (the change of measure dA = r^2 / cos(theta') d omega).
   sample.radiance_over_pdf =

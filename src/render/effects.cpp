@@ -6,6 +6,8 @@
 
 #include <fmt/format.h>
 
+#include "rt/render/surface_maps.h"
+
 namespace rt {
 
 namespace {
@@ -63,6 +65,20 @@ std::string to_string(SkipRule rule) {
     case SkipRule::sample_on_surface: return "sample_on_surface";
   }
   return "?";
+}
+
+// `m` with the largest colours its per-hit maps can give it (texels and vertex colours lie in
+// [0, 1]): a glTF metallic-roughness material's diffuse is at most its base colour, its highlight
+// and mirror weight at most the larger of the base colour and the non-metal's F0
+// (phong_from_metallic_roughness, whose weights 1 - m + m r and 1 - m r are at most 1).
+Material largest_terms(const Material& m) {
+  if (!m.metallic_roughness) return m;
+  Material bound = m;
+  const Color base = m.metallic_roughness->base_color;
+  bound.diffuse = base;
+  bound.specular = glm::max(base, Color(m.metallic_roughness->dielectric_f0));
+  bound.reflective = bound.specular;
+  return bound;
 }
 
 bool is_convex_for_certain(const FlatScene& flat) {
@@ -143,7 +159,8 @@ EffectsPlan plan_effects(const Scene& scene, const FlatScene& flat, const RayOff
   // to lie in [0, 1] (8-bit and 16-bit images decode to that range) for the bounds below.
   bool any_lit_term = false, any_reflection = false, any_diffuse_or_specular = false;
   double largest_reflection = 0.0, largest_emission = 0.0, largest_lit_sum = 0.0;
-  for (const Material& m : scene.materials) {
+  for (const Material& material : scene.materials) {
+    const Material m = largest_terms(material);
     MaterialPlan mp;
     mp.ambient = !is_black(m.ambient);
     mp.diffuse = !is_black(m.diffuse);
@@ -152,6 +169,7 @@ EffectsPlan plan_effects(const Scene& scene, const FlatScene& flat, const RayOff
     // by up to `transmission` (add_dielectric_rays).
     mp.reflection = (m.is_dielectric() || !is_black(reflection_weight(m))) && scene.settings.max_depth > 0;
     mp.refraction = m.is_dielectric() && scene.settings.max_depth > 0;
+    mp.surface_maps = needs_surface_maps(flat, material);
     any_lit_term = any_lit_term || mp.ambient || mp.diffuse || mp.specular;
     any_diffuse_or_specular = any_diffuse_or_specular || mp.diffuse || mp.specular;
     any_reflection = any_reflection || mp.reflection;

@@ -13,6 +13,7 @@
 #include "rt/render/alpha.h"
 #include "rt/render/dielectric.h"
 #include "rt/render/sampling.h"
+#include "rt/render/surface_maps.h"
 
 namespace rt {
 
@@ -273,7 +274,7 @@ template <class Shadows>
 // The radiance a ray sees leaving an emitter's surface (Material::emits_light): its emission (times
 // its texture) from its front side only.
 Vec3d emitted_radiance(const ShadingContext& context, const Material& material, std::uint32_t material_id,
-                       const SurfacePoint& surface, const Vec3d& to_eye, const std::optional<Vec2f>& texcoord) {
+                       const SurfacePoint& surface, const Vec3d& to_eye, const std::optional<TexCoords>& texcoord) {
   if (!(glm::dot(surface.geometric_normal, to_eye) > 0.0)) return Vec3d(0.0);
   if (texcoord && context.textures && context.textures->has_emission(material_id))
     return Vec3d(material.emission) * Vec3d(context.textures->emission(material_id, *texcoord));
@@ -288,9 +289,9 @@ struct GlassAtPoint {
 };
 
 GlassAtPoint glass_at(const ShadingContext& context, std::uint32_t material_id, const Material& material,
-                      const std::optional<Vec2f>& texcoord, const Vec3d& texel) {
+                      const std::optional<TexCoords>& texcoord, const Vec3d& texel, double metallic) {
   if (!material.transmission_mix) return {1.0, Vec3d(material.transmission)};
-  double share = material.transmission_factor;
+  double share = material.transmission_factor * (1.0 - metallic);  // metals transmit nothing
   if (texcoord && context.textures && context.textures->has_transmission(material_id))
     share *= context.textures->transmission(material_id, *texcoord);
   return {std::clamp(share, 0.0, 1.0), Vec3d(material.transmission) * texel};
@@ -369,7 +370,7 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
   const FlatScene& flat = context.flat;
   SurfacePoint surface;
   Vec3d normal;                    // shading normal, unit length
-  std::optional<Vec2f> texcoord;   // interpolated texture coordinates, when the scene has them
+  std::optional<TexCoords> texcoord;  // interpolated texture coordinates, when the scene has them
   if (flat.is_sphere(hit.primitive)) {
     surface = make_sphere_surface_point(flat.sphere_of(hit.primitive), Vec3d(ray.origin), Vec3d(ray.direction), hit.t);
     normal = surface.geometric_normal;
@@ -380,15 +381,34 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
     surface = make_surface_point(p0, p1, p2, b1, b2);
     normal = glm::normalize(b0 * Vec3d(flat.normals[tri.x]) + b1 * Vec3d(flat.normals[tri.y]) +
                             b2 * Vec3d(flat.normals[tri.z]));
-    if (!flat.texcoords.empty())
-      texcoord = float(b0) * flat.texcoords[tri.x] + float(b1) * flat.texcoords[tri.y] +
-                 float(b2) * flat.texcoords[tri.z];
+    if (has_texcoords(flat)) texcoord = texcoords_at(flat, hit.primitive, float(b0), float(b1), float(b2));
   }
   const Vec3d& point = surface.point;
   const Vec3d direction = glm::normalize(Vec3d(ray.direction));
   const Vec3d to_eye = -direction;
   const std::uint32_t material_id = flat.material_of(hit.primitive);
   const Material& material = context.scene.materials[material_id];
+  // Texture space, float: the diffuse texture's colour at the hit (white without one; spheres
+  // carry no texture coordinates).
+  const Vec3d texel = texcoord && context.textures && context.textures->has_diffuse(material_id)
+                          ? Vec3d(context.textures->diffuse(material_id, *texcoord))
+                          : Vec3d(1.0);
+  Vec3d ambient = Vec3d(material.ambient) * texel, diffuse = Vec3d(material.diffuse) * texel;
+  Vec3d specular(material.specular);
+  Vec3d material_reflective(material.reflective.value_or(material.specular));
+  double shininess = material.shininess;
+  double metallic = 0.0;  // per hit, of a metallic-roughness material
+  if (context.plan.materials[material_id].surface_maps) {
+    SurfaceTerms terms{ambient, diffuse, specular, material_reflective, shininess, normal, 0.0};
+    apply_surface_maps(flat, context.textures, material_id, material, hit, texcoord, texel, terms);
+    ambient = terms.ambient;
+    diffuse = terms.diffuse;
+    specular = terms.specular;
+    material_reflective = terms.reflective;
+    shininess = terms.shininess;
+    normal = terms.normal;
+    metallic = terms.metallic;
+  }
   // A two-sided surface seen from behind is lit as its front (glTF doubleSided): the shading
   // normal turns towards the viewer. The geometric normal stays as it is, for the rules that
   // need the outward side (emitters' front, the convex rule); ray origins take their side from
@@ -396,22 +416,14 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
   if (material.back_face == BackFace::flipped && !material.is_dielectric() &&
       glm::dot(surface.geometric_normal, to_eye) < 0.0)
     normal = -normal;
-  // Texture space, float: the diffuse texture's colour at the hit (white without one; spheres
-  // carry no texture coordinates).
-  const Vec3d texel = texcoord && context.textures && context.textures->has_diffuse(material_id)
-                          ? Vec3d(context.textures->diffuse(material_id, *texcoord))
-                          : Vec3d(1.0);
-  Vec3d ambient = Vec3d(material.ambient) * texel, diffuse = Vec3d(material.diffuse) * texel;
   GlassAtPoint glass;
   if (material.is_dielectric()) {
-    glass = glass_at(context, material_id, material, texcoord, texel);
+    glass = glass_at(context, material_id, material, texcoord, texel, metallic);
     if (material.transmission_mix) {  // the opaque material covers the rest
       ambient *= 1.0 - glass.share;
       diffuse *= 1.0 - glass.share;
     }
   }
-  Vec3d specular(material.specular);
-  const Vec3d material_reflective(material.reflective.value_or(material.specular));
   Vec3d reflective = material_reflective;  // the mirror weight, of a blended surface too
   // A blend surface is seen with weight alpha, the ray going on through it for the rest
   // (docs/alpha.md). The see-through ray is one level deeper; with no level left the surface is
@@ -482,7 +494,7 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
     const double n_dot_l = std::max(glm::dot(normal, to_light), 0.0);
     const double n_dot_h = half_length > 0.0 ? std::max(glm::dot(normal, half_sum) / half_length, 0.0) : 0.0;
     // A black specular colour makes the highlight exactly zero (pow of [0, 1] is finite).
-    const Vec3d highlight = terms.specular || !prune ? specular * std::pow(n_dot_h, double(material.shininess)) : Vec3d(0.0);
+    const Vec3d highlight = terms.specular || !prune ? specular * std::pow(n_dot_h, shininess) : Vec3d(0.0);
     const Vec3d term = intensity * (ambient + diffuse * n_dot_l + highlight);
 
     // Exact rules first, then the opt-in approximation; the first rule that applies is counted.
@@ -529,7 +541,7 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
   }
 
   if (plan.area_lights)
-    add_area_light_terms(context, LitSurface{surface, normal, to_eye, diffuse, specular, double(material.shininess), terms},
+    add_area_light_terms(context, LitSurface{surface, normal, to_eye, diffuse, specular, shininess, terms},
                          depth, path_seed, counts, shadows);
 
   if (depth < context.scene.settings.max_depth && glass.share > 0.0) {

@@ -2,6 +2,7 @@
 
 #include <stdlib.h>  // mkdtemp
 
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -20,13 +21,37 @@ float srgb_to_linear(float c) {
   return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
 }
 
+// Whether `role`'s texels are sRGB-encoded colours.
+bool is_colour(TextureRole role) {
+  return role == TextureRole::diffuse || role == TextureRole::emission || role == TextureRole::specular;
+}
+
+// Material `m`'s texture for `role`, when the shader reads it.
+const Texture* texture_for(const Material& m, TextureRole role) {
+  switch (role) {
+    case TextureRole::diffuse: return &m.diffuse_texture;
+    case TextureRole::emission: return m.emits_light ? &m.emission_texture : nullptr;
+    case TextureRole::transmission: return m.is_dielectric() && m.transmission_mix ? &m.transmission_texture : nullptr;
+    case TextureRole::metallic_roughness: return m.metallic_roughness ? &m.metallic_roughness->texture : nullptr;
+    case TextureRole::normal: return &m.normal_texture;
+    case TextureRole::occlusion: return &m.occlusion_texture;
+    case TextureRole::specular: return &m.specular_texture;
+    case TextureRole::shininess: return &m.shininess_texture;
+    case TextureRole::bump: return &m.bump_texture;
+  }
+  return nullptr;
+}
+
 }  // namespace
 
 struct TextureSampler::Impl {
+  struct Lookup {
+    int slot = -1;  // in `files`; -1: none
+    int texcoord = 0;
+    TextureTransform transform;
+  };
   std::unique_ptr<TextureFiles> files;  // null until a material has a texture
-  std::vector<int> diffuse_slots;       // per material: the slot in `files`, -1 for none
-  std::vector<int> emission_slots;
-  std::vector<int> transmission_slots;
+  std::vector<std::array<Lookup, kTextureRoleCount>> lookups;  // per material and role
   fs::path temp_dir;                    // empty unless an embedded image needed a file
 
   ~Impl() {
@@ -47,67 +72,44 @@ struct TextureSampler::Impl {
     std::ofstream(path, std::ios::binary).write(bytes->data(), static_cast<std::streamsize>(bytes->size()));
     return written[bytes.get()] = path;
   }
+
+  const Lookup* find(std::uint32_t material, TextureRole role) const {
+    if (material >= lookups.size()) return nullptr;
+    const Lookup& lookup = lookups[material][static_cast<std::size_t>(role)];
+    return lookup.slot >= 0 ? &lookup : nullptr;
+  }
 };
 
 TextureSampler::TextureSampler(const Scene& scene) : impl_(std::make_unique<Impl>()) {
-  impl_->diffuse_slots.assign(scene.materials.size(), -1);
-  impl_->emission_slots.assign(scene.materials.size(), -1);
-  impl_->transmission_slots.assign(scene.materials.size(), -1);
+  impl_->lookups.resize(scene.materials.size());
   std::map<const std::string*, std::string> written;
-  const auto open = [&](const Texture& texture, int& slot) {
-    if (texture.empty()) return;
-    if (!impl_->files) impl_->files = oiio_module().new_texture_files();
-    const std::string path = texture.encoded ? impl_->file_for(texture.encoded, written) : texture.path;
-    if (!path.empty()) slot = impl_->files->open(path, texture.wrap_s, texture.wrap_t);
-  };
-  for (std::size_t i = 0; i < scene.materials.size(); ++i) {
-    open(scene.materials[i].diffuse_texture, impl_->diffuse_slots[i]);
-    if (scene.materials[i].emits_light) open(scene.materials[i].emission_texture, impl_->emission_slots[i]);
-    if (scene.materials[i].is_dielectric() && scene.materials[i].transmission_mix)
-      open(scene.materials[i].transmission_texture, impl_->transmission_slots[i]);
-  }
+  for (std::size_t m = 0; m < scene.materials.size(); ++m)
+    for (int r = 0; r < kTextureRoleCount; ++r) {
+      const Texture* texture = texture_for(scene.materials[m], static_cast<TextureRole>(r));
+      if (!texture || texture->empty()) continue;
+      if (!impl_->files) impl_->files = oiio_module().new_texture_files();
+      const std::string path = texture->encoded ? impl_->file_for(texture->encoded, written) : texture->path;
+      if (path.empty()) continue;
+      Impl::Lookup& lookup = impl_->lookups[m][static_cast<std::size_t>(r)];
+      lookup.slot = impl_->files->open(path, texture->wrap_s, texture->wrap_t);
+      lookup.texcoord = texture->texcoord;
+      lookup.transform = texture->transform;
+    }
 }
 
 TextureSampler::~TextureSampler() = default;
 
-namespace {
+bool TextureSampler::has(std::uint32_t material, TextureRole role) const { return impl_->find(material, role) != nullptr; }
 
-bool has_slot(const std::vector<int>& slots, std::uint32_t material) {
-  return material < slots.size() && slots[material] >= 0;
-}
-
-// Linear RGB of texture slot `slot` at `uv`: sRGB texel values decoded after filtering; white when
-// the lookup fails.
-Color sample_srgb(TextureFiles& files, int slot, Vec2f uv) {
+Vec3f TextureSampler::sample(std::uint32_t material, TextureRole role, const TexCoords& uv) const {
+  const Impl::Lookup* lookup = impl_->find(material, role);
+  if (!lookup) return Vec3f(1.0f);
+  const Vec2f& chosen = lookup->texcoord == 1 ? uv.uv1 : uv.uv0;
   float rgb[3] = {1.0f, 1.0f, 1.0f};
-  if (!files.sample(slot, uv, rgb)) return Color(1.0f);
+  if (!impl_->files->sample(lookup->slot, lookup->transform.identity() ? chosen : lookup->transform.apply(chosen), rgb))
+    return Vec3f(1.0f);
+  if (!is_colour(role)) return {rgb[0], rgb[1], rgb[2]};
   return {srgb_to_linear(rgb[0]), srgb_to_linear(rgb[1]), srgb_to_linear(rgb[2])};
-}
-
-}  // namespace
-
-bool TextureSampler::has_diffuse(std::uint32_t material) const { return has_slot(impl_->diffuse_slots, material); }
-
-Color TextureSampler::diffuse(std::uint32_t material, Vec2f uv) const {
-  if (!has_diffuse(material)) return Color(1.0f);
-  return sample_srgb(*impl_->files, impl_->diffuse_slots[material], uv);
-}
-
-bool TextureSampler::has_emission(std::uint32_t material) const { return has_slot(impl_->emission_slots, material); }
-
-Color TextureSampler::emission(std::uint32_t material, Vec2f uv) const {
-  if (!has_emission(material)) return Color(1.0f);
-  return sample_srgb(*impl_->files, impl_->emission_slots[material], uv);
-}
-
-bool TextureSampler::has_transmission(std::uint32_t material) const {
-  return has_slot(impl_->transmission_slots, material);
-}
-
-float TextureSampler::transmission(std::uint32_t material, Vec2f uv) const {
-  float rgb[3] = {1.0f, 1.0f, 1.0f};
-  if (!has_transmission(material) || !impl_->files->sample(impl_->transmission_slots[material], uv, rgb)) return 1.0f;
-  return rgb[0];
 }
 
 bool texture_is_readable(const Texture& texture, std::string& reason) {

@@ -108,6 +108,12 @@ void validate_scene(const Scene& scene) {
         throw InputError(scene.source, where, "mesh has a different number of normals and positions");
       if (!mesh.texcoords.empty() && mesh.texcoords.size() != mesh.positions.size())
         throw InputError(scene.source, where, "mesh has a different number of texcoords and positions");
+      if (!mesh.texcoords1.empty() && mesh.texcoords1.size() != mesh.positions.size())
+        throw InputError(scene.source, where, "mesh has a different number of second texcoords and positions");
+      if (!mesh.colors.empty() && mesh.colors.size() != mesh.positions.size())
+        throw InputError(scene.source, where, "mesh has a different number of vertex colours and positions");
+      if (!mesh.tangents.empty() && mesh.tangents.size() != mesh.positions.size())
+        throw InputError(scene.source, where, "mesh has a different number of tangents and positions");
       for (const Vec3u& t : mesh.triangles)
         if (t.x >= mesh.positions.size() || t.y >= mesh.positions.size() || t.z >= mesh.positions.size())
           throw InputError(scene.source, where, "triangle index out of range");

@@ -34,6 +34,12 @@ struct FlatScene {
   std::vector<Vec3f> positions;              // world space
   std::vector<Vec3f> normals;                // world space, unit length, one per position
   std::vector<Vec2f> texcoords;              // empty, or one per position ((0, 0) where a mesh has none)
+  std::vector<Vec2f> texcoords1;             // empty, or one per position ((0, 0) where a mesh has none)
+  std::vector<Vec4f> colors;                 // empty, or one per position (linear RGBA, 1 where a mesh has none)
+  // Empty, or one per position: world space, xyz unit along the image's u (0 where a mesh has
+  // none), w = +-1 the handedness (negated under a mirroring transform, so that w * cross(normal,
+  // tangent) keeps pointing up the image).
+  std::vector<Vec4f> tangents;
   std::vector<Vec3u> triangles;              // indices into positions, counter-clockwise
   std::vector<std::uint32_t> material_ids;   // one per triangle, index into Scene::materials
   std::vector<FlatSphere> spheres;
@@ -47,6 +53,21 @@ struct FlatScene {
     return is_sphere(primitive) ? sphere_of(primitive).material : material_ids[primitive];
   }
 };
+
+// Whether the scene has texture coordinates (either set).
+inline bool has_texcoords(const FlatScene& flat) { return !flat.texcoords.empty() || !flat.texcoords1.empty(); }
+
+// The texture coordinates of triangle `triangle` at barycentrics (b0, b1, b2), interpolated in
+// float32 (a set the scene lacks reads (0, 0)).
+inline TexCoords texcoords_at(const FlatScene& flat, std::uint32_t triangle, float b0, float b1, float b2) {
+  const Vec3u tri = flat.triangles[triangle];
+  TexCoords uv;
+  if (!flat.texcoords.empty())
+    uv.uv0 = b0 * flat.texcoords[tri.x] + b1 * flat.texcoords[tri.y] + b2 * flat.texcoords[tri.z];
+  if (!flat.texcoords1.empty())
+    uv.uv1 = b0 * flat.texcoords1[tri.x] + b1 * flat.texcoords1[tri.y] + b2 * flat.texcoords1[tri.z];
+  return uv;
+}
 
 // World-space axis-aligned bounds (double) of the triangles' vertices and the spheres; empty()
 // when the scene has no primitive.

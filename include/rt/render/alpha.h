@@ -45,7 +45,7 @@ class SceneAlpha {
     float cutoff = 0.5f;
     int width = 0, height = 0;  // the texture's texels; 0: none
     std::vector<float> texels;
-    TextureWrap wrap_s = TextureWrap::repeat, wrap_t = TextureWrap::repeat;
+    Texture lookup;  // the alpha texture's wrap modes, coordinate set and transform
   };
   // The alpha of triangle `triangle`, whose material's is `alpha`, at barycentrics (b1, b2).
   double triangle_alpha(const MaterialAlpha& alpha, std::uint32_t triangle, float b1, float b2) const;

@@ -97,7 +97,7 @@ struct LightSample {
   // emission texture: when the emitter has one, `texcoord` says where to sample it, and the caller
   // multiplies it in once the sample's term is known not to vanish (a lookup saved where n.l <= 0).
   Vec3d radiance_over_pdf{0.0};
-  std::optional<Vec2f> texcoord;
+  std::optional<TexCoords> texcoord;
   SurfacePoint light_point;  // the sample on the emitter, for the shadow ray's far end
 };
 

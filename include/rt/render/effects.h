@@ -81,6 +81,7 @@ struct MaterialPlan {
   bool specular = false;
   bool reflection = false;  // its reflection weight (Material::reflective, else specular; glass: Fresnel) is not black
   bool refraction = false;  // a dielectric (Material::is_dielectric): refracted rays are traced
+  bool surface_maps = false;  // its hits run apply_surface_maps (needs_surface_maps, rt/render/surface_maps.h)
 };
 
 // The plan for one scene and one set of options; built by plan_effects, read by find_color.

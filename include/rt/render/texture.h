@@ -1,5 +1,5 @@
 #pragma once
-// Texture lookups for shading, through one OpenImageIO TextureSystem per render.
+// Texture lookups for shading, through OpenImageIO's TextureSystem.
 
 #include <cstdint>
 #include <memory>
@@ -11,36 +11,54 @@
 
 namespace rt {
 
-// The diffuse and emission textures of a scene's materials, ready to sample from many threads at once.
-// Lookups are bilinear on the full-resolution image with no derivatives and no MIP-mapping: a
-// Whitted renderer traces one ray per pixel, so there is no footprint to filter over.
+// What a material's texture is for, which says how its texels are read: colour maps hold sRGB
+// values, decoded to linear after filtering; data maps are read as stored.
+enum class TextureRole : std::uint8_t {
+  diffuse,             // colour: Material::diffuse_texture
+  emission,            // colour: emission_texture (emitters only)
+  transmission,        // data, red: transmission_texture (glTF glass only)
+  metallic_roughness,  // data, green roughness and blue metallic: MetallicRoughness::texture
+  normal,              // data: normal_texture, a tangent-space normal per texel
+  occlusion,           // data, red: occlusion_texture
+  specular,            // colour: specular_texture
+  shininess,           // data, first channel: shininess_texture
+  bump,                // data, first channel: bump_texture, a height map
+};
+inline constexpr int kTextureRoleCount = 9;
+
+// The textures of a scene's materials, ready to sample from many threads at once. Lookups are
+// bilinear on the full-resolution image with no derivatives and no MIP-mapping: a Whitted
+// renderer traces one ray per pixel, so there is no footprint to filter over. Each texture is
+// looked up at its own coordinate set and transform (Texture::lookup_uv).
 class TextureSampler {
  public:
-  // Opens every material's diffuse_texture, emitters' emission_texture and glTF glass's
-  // transmission_texture. Embedded (encoded) images are written to a private
+  // Opens every material's textures (those the shader reads: emission only for emitters,
+  // transmission only for glTF glass). Embedded (encoded) images are written to a private
   // temporary directory, removed again by the destructor. A texture that cannot be read samples
-  // as white (loaders check readability and report it; see load_gltf.h).
+  // as if absent (loaders check readability and report it; see load_gltf.h).
   explicit TextureSampler(const Scene& scene);
   ~TextureSampler();
   TextureSampler(const TextureSampler&) = delete;
   TextureSampler& operator=(const TextureSampler&) = delete;
 
-  // True when material `material` has a diffuse texture.
-  bool has_diffuse(std::uint32_t material) const;
+  // True when material `material` has a texture for `role`.
+  bool has(std::uint32_t material, TextureRole role) const;
 
-  // Linear RGB of material `material`'s diffuse texture at texture coordinates `uv` (see Texture),
-  // with the material's wrap modes; sRGB texel values are decoded after filtering. White when the
-  // material has no texture or the lookup fails.
-  Color diffuse(std::uint32_t material, Vec2f uv) const;
+  // The first three channels of material `material`'s `role` texture at a point with
+  // coordinates `uv`, with the texture's wrap modes: linear RGB for colour roles (sRGB decoded
+  // after filtering), as stored for data roles. White (1, 1, 1) when there is no such texture or
+  // the lookup fails.
+  Vec3f sample(std::uint32_t material, TextureRole role, const TexCoords& uv) const;
 
-  // The same for the emission texture of emitter material `material` (Material::emits_light).
-  bool has_emission(std::uint32_t material) const;
-  Color emission(std::uint32_t material, Vec2f uv) const;
-
-  // The red channel of material `material`'s transmission texture (Material::transmission_mix),
-  // linear, at `uv`; 1 without one or when the lookup fails.
-  bool has_transmission(std::uint32_t material) const;
-  float transmission(std::uint32_t material, Vec2f uv) const;
+  // The roles the shader's fast path reads.
+  bool has_diffuse(std::uint32_t material) const { return has(material, TextureRole::diffuse); }
+  Color diffuse(std::uint32_t material, const TexCoords& uv) const { return sample(material, TextureRole::diffuse, uv); }
+  bool has_emission(std::uint32_t material) const { return has(material, TextureRole::emission); }
+  Color emission(std::uint32_t material, const TexCoords& uv) const { return sample(material, TextureRole::emission, uv); }
+  bool has_transmission(std::uint32_t material) const { return has(material, TextureRole::transmission); }
+  float transmission(std::uint32_t material, const TexCoords& uv) const {
+    return sample(material, TextureRole::transmission, uv).r;
+  }
 
  private:
   struct Impl;  // keeps OpenImageIO out of this header

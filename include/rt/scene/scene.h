@@ -21,17 +21,46 @@ namespace rt {
 // How texture coordinates outside [0, 1] map into the image (glTF sampler wrap modes).
 enum class TextureWrap { repeat, clamp_to_edge, mirrored_repeat };
 
+// Texture coordinates at a point of a surface, both sets (texture space, float32).
+struct TexCoords {
+  Vec2f uv0{0.0f};  // TriangleMesh::texcoords
+  Vec2f uv1{0.0f};  // TriangleMesh::texcoords1
+};
+
+// glTF's KHR_texture_transform: uv' = offset + R(rotation) (scale * uv), R turning
+// counter-clockwise by `rotation` radians (the extension's GLSL, column-major).
+struct TextureTransform {
+  Vec2f offset{0.0f};
+  float rotation = 0.0f;
+  Vec2f scale{1.0f};
+
+  bool identity() const { return offset == Vec2f(0.0f) && rotation == 0.0f && scale == Vec2f(1.0f); }
+  Vec2f apply(Vec2f uv) const {
+    const float c = std::cos(rotation), s = std::sin(rotation);
+    const Vec2f scaled = scale * uv;
+    return offset + Vec2f(c * scaled.x - s * scaled.y, s * scaled.x + c * scaled.y);
+  }
+};
+
 // An image looked up by a mesh's texcoords, (0, 0) at the top-left corner of the image (the glTF
 // convention). `path` names an image file; when `encoded` is set, the encoded file itself (PNG,
 // JPEG, ...) was embedded in the scene file and `path` only labels it in messages.
-// Texel values are sRGB-encoded colours, decoded to linear RGB when sampled.
+// Colour textures hold sRGB-encoded values, decoded to linear RGB when sampled; data textures
+// (normal, metallic-roughness, occlusion maps) are read as stored.
 struct Texture {
   std::string path;  // empty: no texture
   std::shared_ptr<const std::string> encoded;
   TextureWrap wrap_s = TextureWrap::repeat;  // along u (image columns)
   TextureWrap wrap_t = TextureWrap::repeat;  // along v (image rows)
+  int texcoord = 0;  // the coordinate set: 0 or 1 (TexCoords::uv0, uv1)
+  TextureTransform transform;
 
   bool empty() const { return path.empty(); }
+  // The coordinates this texture is looked up at, at a point with coordinates `uv`.
+  Vec2f lookup_uv(const TexCoords& uv) const {
+    const Vec2f& chosen = texcoord == 1 ? uv.uv1 : uv.uv0;
+    return transform.identity() ? chosen : transform.apply(chosen);
+  }
 };
 
 // How a material's alpha (coverage) is used (glTF alphaMode; docs/alpha.md).
@@ -49,6 +78,18 @@ enum class BackFace {
   culled,     // not there: rays of every kind pass it (glTF single-sided); triangles only
 };
 
+// glTF metallic-roughness inputs of a material whose Phong terms vary over the surface (a
+// metallic-roughness texture, or a textured or vertex-coloured metal): the shader maps them per
+// hit with phong_from_metallic_roughness (rt/scene/metallic_roughness.h), where a constant
+// material is mapped once by the loader.
+struct MetallicRoughness {
+  Color base_color{1.0f};       // baseColorFactor, linear RGB; the diffuse texture and vertex colours multiply it
+  float metallic = 1.0f;        // metallicFactor, x the texture's blue channel
+  float roughness = 1.0f;       // roughnessFactor, x the texture's green channel
+  float dielectric_f0 = 0.04f;  // reflectance at normal incidence of the non-metal, ((ior - 1) / (ior + 1))^2
+  Texture texture;              // metallicRoughnessTexture (linear); may be empty
+};
+
 // Phong / Blinn-Phong material of the seed's FindColor. Colours are linear RGB in [0, inf).
 struct Material {
   std::string name;
@@ -62,6 +103,22 @@ struct Material {
   // zero: no reflection ray.
   std::optional<Color> reflective;
   Texture diffuse_texture;  // multiplies `diffuse` and `ambient` at each hit
+
+  // Maps sampled per hit besides the diffuse texture (rt/render/surface_maps.h).
+  std::optional<MetallicRoughness> metallic_roughness;  // set: diffuse, specular, shininess and reflective come from it
+  Texture normal_texture;     // tangent space (+X along u, +Y up the image, glTF's convention); needs tangents
+  float normal_scale = 1.0f;  // multiplies the map's X and Y (glTF normalTexture.scale)
+  Texture occlusion_texture;  // red channel r: `ambient` x (1 + occlusion_strength (r - 1))
+  float occlusion_strength = 1.0f;
+  Texture specular_texture;   // colour multiplying `specular` (MTL map_Ks)
+  Texture shininess_texture;  // first channel multiplying `shininess` (MTL map_Ns)
+  Texture bump_texture;       // height map, first channel (MTL bump, map_bump), in units of bump_scale
+  float bump_scale = 1.0f;    // MTL -bm
+  // Whether the shader needs the per-hit maps stage for this material (vertex colours aside).
+  bool has_surface_maps() const {
+    return metallic_roughness || !normal_texture.empty() || !occlusion_texture.empty() || !specular_texture.empty() ||
+           !shininess_texture.empty() || !bump_texture.empty();
+  }
   // An emitter (OBJ/MTL Ke, glTF emissive, native "emitter": true): `emission` times
   // `emission_texture` is radiance (linear RGB) leaving the front side of each triangle (counter-
   // clockwise seen from the front); rays see it from that side only, and it lights the scene as an
@@ -148,11 +205,18 @@ struct Camera {
 // normals is empty or has one unit vector per position; texcoords is empty or has one (u, v) per
 // position (texture space, see Texture); triangles are counter-clockwise
 // when seen from the side the geometric normal (p1 - p0) x (p2 - p0) points to.
+// The optional attributes, each empty or one per position: texcoords1 a second coordinate set
+// (glTF TEXCOORD_1, see Texture::texcoord); colors linear RGBA multiplying the base colour (glTF
+// COLOR_0); tangents the tangent frames of normal maps (xyz unit, along increasing u, w = +-1 the
+// handedness; see generate_tangents in rt/scene/tangents.h).
 struct TriangleMesh {
   std::vector<Vec3f> positions;
   std::vector<Vec3f> normals;
   std::vector<Vec2f> texcoords;
   std::vector<Vec3u> triangles;
+  std::vector<Vec2f> texcoords1;
+  std::vector<Vec4f> colors;
+  std::vector<Vec4f> tangents;
 };
 
 // An exact sphere in object space. Under a node's transform it becomes an ellipsoid in general;
