@@ -14,6 +14,7 @@
 #include "rt/flatten/flatten.h"
 #include "rt/io/image_io.h"
 #include "rt/io/load_gltf.h"
+#include "rt/io/load_obj.h"
 #include "rt/render/render.h"
 #include "rt/render/surface_maps.h"
 #include "rt/render/surface_test.h"
@@ -254,4 +255,48 @@ TEST_CASE("COLOR_0 multiplies the base colour", "[surface-maps][gltf]") {
   for (const rt::Color& c : image.pixels)
     most_saturated = std::max(most_saturated, double(std::max({c.r, c.g, c.b}) - std::min({c.r, c.g, c.b})));
   CHECK(most_saturated > 0.3);
+}
+
+namespace {
+
+// A 2x1 grey PNG (Python's zlib): texels 0 | 255, a height ramp between the texel centres.
+const unsigned char kRampPng[] = {
+    0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48, 0x44, 0x52, 0x00, 0x00, 0x00,
+    0x02, 0x00, 0x00, 0x00, 0x01, 0x08, 0x00, 0x00, 0x00, 0x00, 0xd1, 0x49, 0x20, 0x56, 0x00, 0x00, 0x00, 0x0b, 0x49,
+    0x44, 0x41, 0x54, 0x78, 0x9c, 0x63, 0x60, 0xf8, 0x0f, 0x00, 0x01, 0x02, 0x01, 0x00, 0x42, 0xbe, 0xbc, 0x68, 0x00,
+    0x00, 0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60, 0x82};
+
+}  // namespace
+
+TEST_CASE("MTL maps: map_Ks, map_Ns, norm and a bump height map that tilts the normal by its slope",
+          "[surface-maps][obj]") {
+  rt_test::TempDir dir;
+  rt_test::write_file(dir / "ramp.png", std::string(reinterpret_cast<const char*>(kRampPng), sizeof kRampPng));
+  // The quad (-1..1)^2 in z = 0 with vt = ((x + 1) / 2, (y + 1) / 2): u runs along +x.
+  rt_test::write_file(dir / "quad.obj", "mtllib quad.mtl\nusemtl bumpy\nv -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n"
+                                        "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 0 1\nf 1/1/1 2/2/1 3/3/1 4/4/1\n");
+  rt_test::write_file(dir / "quad.mtl", "newmtl bumpy\nKa 0 0 0\nKd 1 1 1\nKs 0 0 0\nbump -bm 0.5 ramp.png\n"
+                                        "newmtl mapped\nKd 1 1 1\nmap_Ks ramp.png\nmap_Ns ramp.png\nnorm ramp.png\n");
+  rt::Scene scene = rt::load_obj_scene(dir / "quad.obj");
+  const rt::Material& mapped = rt_test::material_named(scene, "mapped");
+  CHECK(mapped.specular_texture.path == dir / "ramp.png");
+  CHECK(mapped.shininess_texture.path == dir / "ramp.png");
+  CHECK(mapped.normal_texture.path == dir / "ramp.png");
+  CHECK(mapped.bump_texture.empty());
+  const rt::Material& bumpy = rt_test::material_named(scene, "bumpy");
+  REQUIRE(bumpy.bump_texture.path == dir / "ramp.png");
+  CHECK(bumpy.bump_scale == 0.5f);
+
+  // Height h = 0.5 (u - 1/4) / (1/2) between the texel centres: dh/du = 1, and dp/du = (2, 0, 0),
+  // so the displaced surface's normal is cross((2, 0, 1), dp/dv) turned up: (-1, 0, 2) / sqrt(5).
+  scene.settings.width = scene.settings.height = 16;
+  scene.camera = {rt::Vec3d(0, 0, 3), rt::Vec3d(0), rt::Vec3d(0, 1, 0), 30.0};
+  rt::Light light;
+  light.position = rt::Vec4d(-1.0, 0.0, 1.0, 0.0);  // towards the light
+  scene.lights = {light};
+  const rt::FlatScene flat = rt::flatten_scene(scene);
+  const auto accel = rt::build_accel(rt::AccelKind::embree, flat);
+  const rt::Image image = rt::render_image(scene, flat, *accel, {}).image;
+  const rt::Vec3d bumped = glm::normalize(rt::Vec3d(-1, 0, 2)), to_light = glm::normalize(rt::Vec3d(-1, 0, 1));
+  CHECK(image.at(8, 8).r == Approx(glm::dot(bumped, to_light)).epsilon(2e-3));  // flat: 0.707
 }

@@ -17,6 +17,7 @@
 #include "rt/render/texture.h"
 #include "rt/scene/framing.h"
 #include "rt/scene/shapes.h"
+#include "rt/scene/tangents.h"
 
 namespace rt {
 
@@ -133,7 +134,21 @@ Color color_of(const tinyobj::real_t rgb[3]) { return Color(rgb[0], rgb[1], rgb[
 Material to_material(const tinyobj::material_t& m, const fs::path& directory) {
   Material material;
   material.back_face = BackFace::flipped;  // OBJ has no sides: lit from either, as renderers treat it
-  if (!m.diffuse_texname.empty()) material.diffuse_texture.path = (directory / m.diffuse_texname).lexically_normal().string();
+  const auto texture_at = [&](const std::string& name) {
+    Texture texture;
+    if (!name.empty()) texture.path = (directory / name).lexically_normal().string();
+    return texture;
+  };
+  material.diffuse_texture = texture_at(m.diffuse_texname);
+  material.specular_texture = texture_at(m.specular_texname);             // map_Ks: multiplies Ks
+  material.shininess_texture = texture_at(m.specular_highlight_texname);  // map_Ns: multiplies Ns
+  // norm (an extension of the format) is a tangent-space normal map; bump and map_bump are height
+  // maps, as the MTL spec has them, scaled by -bm. A material with both uses the normal map.
+  material.normal_texture = texture_at(m.normal_texname);
+  if (material.normal_texture.empty()) {
+    material.bump_texture = texture_at(m.bump_texname);
+    material.bump_scale = static_cast<float>(m.bump_texopt.bump_multiplier);
+  }
   material.name = m.name;
   material.ambient = color_of(m.ambient);
   material.diffuse = color_of(m.diffuse);
@@ -249,8 +264,12 @@ Scene load_obj_scene(const std::string& path, LoadReport* report, const ObjLoadO
         }
         material = *default_material;
       }
-      root.models.push_back(
-          {std::make_shared<const TriangleMesh>(build_mesh(obj, groups[id], position_vertex)), material});
+      TriangleMesh mesh = build_mesh(obj, groups[id], position_vertex);
+      if (!scene.materials[material].normal_texture.empty() && !mesh.texcoords.empty()) {
+        if (mesh.normals.empty()) compute_vertex_normals(mesh);
+        generate_tangents(mesh);
+      }
+      root.models.push_back({std::make_shared<const TriangleMesh>(std::move(mesh)), material});
     }
   }
   if (scene.materials.empty()) scene.materials.push_back(default_obj_material());
@@ -264,18 +283,21 @@ Scene load_obj_scene(const std::string& path, LoadReport* report, const ObjLoadO
   if (!obj.unknown_materials.empty() && obj.missing_libraries.empty())
     r.warnings.push_back(fmt::format("{}: {} material(s) not defined in any library, using the default: {}", path,
                                      obj.unknown_materials.size(), join(obj.unknown_materials)));
-  // A map_Kd that cannot be read falls back to Kd alone, as glTF textures do.
+  // A texture that cannot be read is left out (map_Kd falls back to Kd alone, as glTF textures do).
   for (Material& material : scene.materials) {
-    std::string reason;
-    if (!material.diffuse_texture.empty() && !texture_is_readable(material.diffuse_texture, reason)) {
-      r.warnings.push_back(fmt::format("{}: material '{}': map_Kd '{}' cannot be read ({}); using Kd alone", path,
-                                       material.name, material.diffuse_texture.path, reason));
-      material.diffuse_texture = {};
-    }
-    if (!material.emission_texture.empty() && !texture_is_readable(material.emission_texture, reason)) {
-      r.warnings.push_back(fmt::format("{}: material '{}': map_Ke '{}' cannot be read ({}); using Ke alone", path,
-                                       material.name, material.emission_texture.path, reason));
-      material.emission_texture = {};
+    const std::pair<Texture*, const char*> maps[] = {
+        {&material.diffuse_texture, "map_Kd '{}' cannot be read ({}); using Kd alone"},
+        {&material.emission_texture, "map_Ke '{}' cannot be read ({}); using Ke alone"},
+        {&material.specular_texture, "map_Ks '{}' cannot be read ({}); using Ks alone"},
+        {&material.shininess_texture, "map_Ns '{}' cannot be read ({}); using Ns alone"},
+        {&material.normal_texture, "norm '{}' cannot be read ({}); left flat"},
+        {&material.bump_texture, "bump map '{}' cannot be read ({}); left flat"}};
+    for (const auto& [texture, message] : maps) {
+      std::string reason;
+      if (texture->empty() || texture_is_readable(*texture, reason)) continue;
+      r.warnings.push_back(fmt::format("{}: material '{}': {}", path, material.name,
+                                       fmt::format(fmt::runtime(message), texture->path, reason)));
+      *texture = {};
     }
   }
   r.bounds = world_bounds(scene);
