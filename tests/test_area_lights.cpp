@@ -340,7 +340,7 @@ TEST_CASE("OBJ: Ke makes an area light and replaces the headlight, negative Ke i
   rt::LoadReport report;
   const rt::Scene scene = rt::load_scene((dir.path() / "box.obj").string(), {}, &report);
   CHECK(scene.lights.empty());
-  CHECK_FALSE(report.headlight_added);
+  CHECK_FALSE(report.default_lights_added);
   REQUIRE(scene.materials.size() == 2);
   CHECK(scene.materials[1].emits_light);
   CHECK_FALSE(scene.materials[0].emits_light);

@@ -211,7 +211,8 @@ TEST_CASE("the plan's predictions hold in the ray counts", "[effects]") {
   SECTION("the only light sits at the eye: no shadow rays") {
     rt::Scene scene = rt::make_default_scene();
     for (rt::Material& m : scene.materials) m.specular = rt::Color(0.0f), m.reflective.reset();
-    scene.lights = {rt::make_headlight(scene.camera)};
+    scene.lights.assign(1, rt::Light{});  // a white point light at the eye
+    scene.lights[0].position = rt::Vec4d(scene.camera.eye, 1.0);
     scene.settings.width = 80;
     scene.settings.height = 60;
     const Renderer renderer(scene);

@@ -137,7 +137,7 @@ TEST_CASE("OBJ scene: one model per material, MTL mapped, quads triangulated", "
   CHECK(matte.emits_light);
   CHECK_FALSE(mirror.emits_light);
   CHECK(report.camera_framed);
-  CHECK_FALSE(report.headlight_added);
+  CHECK_FALSE(report.default_lights_added);
   CHECK(report.view == rt::Vec3d(0, 0, -1));
   CHECK(scene.lights.empty());
   CHECK(scene.camera.target == rt::Vec3d(0.5, 0.5, 0.0));
@@ -295,6 +295,29 @@ TEST_CASE("OBJ: the mirror material traces reflection rays, illum 2 does not", "
   };
   CHECK(reflections("quad.json") > 0);
   CHECK(reflections("matte.json") == 0);
+}
+
+TEST_CASE("the default lights: a key light from above and behind the eye and a headlight, following the camera",
+          "[obj][lights]") {
+  rt::Camera camera;
+  camera.eye = rt::Vec3d(3, 1, 4);
+  camera.target = rt::Vec3d(0, 0.5, 0);
+  camera.up = rt::Vec3d(0, 1, 0);
+  const std::vector<rt::Light> lights = rt::make_default_lights(camera);
+  REQUIRE(lights.size() == 2);
+  const rt::Vec3d back = glm::normalize(camera.eye - camera.target);
+  const rt::Vec3d right = glm::normalize(glm::cross(camera.up, back));
+  const rt::Vec3d up = glm::cross(back, right);
+  REQUIRE(lights[0].is_directional());
+  const rt::Vec3d to_key = glm::normalize(rt::Vec3d(lights[0].position));
+  CHECK(glm::dot(to_key, up) > 0.6);     // well above the eye
+  CHECK(glm::dot(to_key, back) > 0.3);   // and behind it: camera-facing surfaces see it
+  CHECK(glm::dot(to_key, right) > 0.2);  // a little to the right, so shading is not symmetric
+  CHECK(lights[0].color == rt::Color(0.8f));
+  CHECK(lights[1].position == rt::Vec4d(camera.eye, 1.0));
+  CHECK(lights[1].color == rt::Color(0.4f));
+  // A camera-facing surface gets about what a white headlight gave it: 0.8 cos + 0.4.
+  CHECK(0.8 * glm::dot(to_key, back) + 0.4 == Approx(0.82).margin(0.03));
 }
 
 TEST_CASE("rt flags: --eye/--target, --point-light, --background, --fovy", "[cli][obj]") {

@@ -118,15 +118,15 @@ TEST_CASE("rt-perf export-mitsuba writes scene.json and one PLY per material, as
   CHECK(in.at("materials")[1].at("mesh") == "mesh-1.ply");
 }
 
-TEST_CASE("rt-perf export-mitsuba: an OBJ gets rt render's headlight, bad input fails in one line", "[perf]") {
+TEST_CASE("rt-perf export-mitsuba: an OBJ gets rt render's default lights, bad input fails in one line", "[perf]") {
   rt_test::TempDir dir;
   rt_test::write_file(dir.path() / "tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
   const rt_test::RtRun obj = rt_test::run_in(dir, RT_PERF_EXECUTABLE, "export-mitsuba tri.obj --out o");
   REQUIRE(obj.status == 0);
   const nlohmann::json scene = read_json(dir / "o/scene.json");
   CHECK(scene.at("headlight") == true);
-  REQUIRE(scene.at("lights").size() == 1);
-  CHECK(scene.at("lights")[0].at("attenuation") == nlohmann::json({1.0, 0.0, 0.0}));
+  REQUIRE(scene.at("lights").size() == 2);  // the default key light and headlight
+  CHECK(scene.at("lights")[1].at("attenuation") == nlohmann::json({1.0, 0.0, 0.0}));
   CHECK(scene.at("notices").size() == 1);
 
   const rt_test::RtRun missing = rt_test::run_in(dir, RT_PERF_EXECUTABLE, "export-mitsuba none.json --out o");

@@ -113,9 +113,9 @@ void apply_scene_options(const SceneOptions& options, const LoadReport& report, 
       throw UsageError(fmt::format("{}: {}", flag, problem->reason));
     }
 
-  if (report.headlight_added) {
+  if (report.default_lights_added) {  // they follow the camera the flags chose
     scene.lights.clear();
-    if (!options.lights_given()) scene.lights.push_back(make_headlight(camera));
+    if (!options.lights_given()) scene.lights = make_default_lights(camera);
   }
   for (const std::vector<double>& v : options.point_lights) {
     Light light;
@@ -137,14 +137,15 @@ std::vector<std::string> scene_notices(const SceneOptions& options, const LoadRe
   std::vector<std::string> notices;
   for (const std::string& warning : report.warnings) notices.push_back("warning: " + warning);
   const bool framed = report.camera_framed && options.eye.empty() && options.target.empty();
-  const bool headlight = report.headlight_added && !options.lights_given();
-  if (framed || headlight) {
+  const bool lights = report.default_lights_added && !options.lights_given();
+  if (framed || lights) {
     std::string made;
     if (framed) made = fmt::format("framed its bounding box looking along {} (--eye/--target to choose)", direction_text(report.view));
-    if (headlight)
-      made += std::string(framed ? "; " : "") + "added a headlight at the eye (--point-light/--directional-light to choose)";
+    if (lights)
+      made += std::string(framed ? "; " : "") +
+              "lit it with a key light above and behind the eye and a headlight (--point-light/--directional-light to choose)";
     notices.push_back(fmt::format("note: {} has no {}: {}", scene.source,
-                                  framed && headlight ? "camera or lights" : framed ? "camera" : "lights", made));
+                                  framed && lights ? "camera or lights" : framed ? "camera" : "lights", made));
   }
   return notices;
 }

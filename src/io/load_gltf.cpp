@@ -19,6 +19,7 @@
 #include "rt/core/error.h"
 #include "rt/core/memory.h"
 #include "rt/render/texture.h"
+#include "rt/scene/framing.h"
 #include "rt/scene/metallic_roughness.h"
 #include "rt/scene/tangents.h"
 
@@ -851,13 +852,11 @@ void GltfReader::read_lights(const std::vector<Placed>& placed, Scene& scene) {
     scene.lights.push_back(light);
   }
   if (scene.lights.empty() && !lit_by_own_emitters(scene)) {
-    Light headlight;
-    headlight.position = Vec4d(scene.camera.eye, 1.0);
-    scene.lights.push_back(headlight);
+    scene.lights = make_default_lights(scene.camera);
     if (report_)
-      report_->headlight_added = true;
+      report_->default_lights_added = true;
     else
-      notices_.push_back(fmt::format("{}: no lights: using a white headlight at the camera", path_));
+      notices_.push_back(fmt::format("{}: no lights: using the default key light and headlight", path_));
   }
 }
 

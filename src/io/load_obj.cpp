@@ -306,8 +306,8 @@ Scene load_obj_scene(const std::string& path, LoadReport* report, const ObjLoadO
   scene.camera = frame_bounds(r.bounds, double(scene.settings.width) / scene.settings.height, r.view);
   // A file whose own surfaces emit is lit by them; otherwise a headlight shows the model.
   if (!lit_by_own_emitters(scene)) {
-    scene.lights = {make_headlight(scene.camera)};
-    r.headlight_added = true;
+    scene.lights = make_default_lights(scene.camera);
+    r.default_lights_added = true;
   }
   validate_scene(scene);
   return scene;

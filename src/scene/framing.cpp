@@ -50,12 +50,19 @@ Camera frame_bounds(const Bounds3d& bounds, double aspect, const Vec3d& view, co
   return camera;
 }
 
-Light make_headlight(const Camera& camera) {
-  Light light;
-  light.position = Vec4d(camera.eye, 1.0);
-  light.color = Color(1.0f);
-  light.attenuation = Vec3d(1.0, 0.0, 0.0);
-  return light;
+std::vector<Light> make_default_lights(const Camera& camera) {
+  // The camera's frame, world space: back points from the target towards the eye.
+  const Vec3d back = glm::normalize(camera.eye - camera.target);
+  const Vec3d right = glm::normalize(glm::cross(camera.up, back));
+  const Vec3d up = glm::cross(back, right);
+  Light key;
+  key.position = Vec4d(glm::normalize(0.5 * right + 1.0 * up + 0.7 * back), 0.0);
+  key.color = Color(0.8f);
+  Light head;
+  head.position = Vec4d(camera.eye, 1.0);
+  head.color = Color(0.4f);
+  head.attenuation = Vec3d(1.0, 0.0, 0.0);
+  return {key, head};
 }
 
 }  // namespace rt

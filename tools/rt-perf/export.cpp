@@ -178,7 +178,7 @@ int run_export(const ExportArgs& args) {
   json["max_depth"] = scene.settings.max_depth;
   json["lights"] = Json::array();
   for (const Light& light : scene.lights) json["lights"].push_back(light_json(light));
-  json["headlight"] = report.headlight_added && !args.scene_options.lights_given();
+  json["headlight"] = report.default_lights_added && !args.scene_options.lights_given();
   json["materials"] = std::move(materials);
   json["spheres"] = std::move(spheres);
   const Bounds3d bounds = flat_bounds(flat);  // world space; null when there is no geometry

@@ -16,8 +16,8 @@ struct LoadReport {
   bool camera_framed = false;
   Bounds3d bounds;
   Vec3d view{0.0, 0.0, -1.0};
-  // The file has no lights: Scene::lights is {make_headlight(Scene::camera)}.
-  bool headlight_added = false;
+  // The file has no lights: Scene::lights is make_default_lights(Scene::camera).
+  bool default_lights_added = false;
 };
 
 }  // namespace rt

@@ -38,8 +38,12 @@ Bounds3d world_bounds(const Scene& scene);
 Camera frame_bounds(const Bounds3d& bounds, double aspect, const Vec3d& view = {0.0, 0.0, -1.0},
                     const Vec3d& up = {0.0, 1.0, 0.0}, double fovy_degrees = 45.0);
 
-// A white point light at the camera's eye, unattenuated: lights whatever the camera sees, with
-// no visible shadows.
-Light make_headlight(const Camera& camera);
+// The lights of a scene file that has none (glTF, OBJ; docs/scene-formats.md, "Default
+// lighting"): a key light, directional, from above the camera and behind it, a little to its
+// right (towards it: 0.5 right + 1 up + 0.7 back, normalised; colour 0.8), which shades and
+// shadows shape, and a headlight, a point light of colour 0.4 at the eye (unattenuated), which
+// fills what the key light leaves dark. A surface facing the camera gets about 0.8 of a white
+// headlight of 1, a surface facing up about 1.
+std::vector<Light> make_default_lights(const Camera& camera);
 
 }  // namespace rt
