@@ -300,3 +300,34 @@ TEST_CASE("MTL maps: map_Ks, map_Ns, norm and a bump height map that tilts the n
   const rt::Vec3d bumped = glm::normalize(rt::Vec3d(-1, 0, 2)), to_light = glm::normalize(rt::Vec3d(-1, 0, 1));
   CHECK(image.at(8, 8).r == Approx(glm::dot(bumped, to_light)).epsilon(2e-3));  // flat: 0.707
 }
+
+TEST_CASE("occlusion maps scale the ambient term by 1 + strength (r - 1)", "[surface-maps]") {
+  rt_test::TempDir dir;
+  rt_test::write_file(dir / "ramp.png", std::string(reinterpret_cast<const char*>(kRampPng), sizeof kRampPng));
+  // One triangle whose texture coordinates are constant: u = 0.25 (the black texel, r = 0) or
+  // 0.75 (the white one, r = 1).
+  for (const float u : {0.25f, 0.75f})
+    for (const float strength : {1.0f, 0.5f}) {
+      rt::TriangleMesh mesh = rt_test::make_flat_mesh({{rt::Vec3f(0, 0, 0), rt::Vec3f(1, 0, 0), rt::Vec3f(0, 1, 0)}});
+      mesh.texcoords.assign(3, rt::Vec2f(u, 0.5f));
+      rt::Scene scene = rt_test::make_scene({{mesh, 0}});
+      rt::Material material;
+      material.ambient = rt::Color(0.5f);
+      material.occlusion_texture.path = dir / "ramp.png";
+      material.occlusion_texture.wrap_s = rt::TextureWrap::clamp_to_edge;
+      material.occlusion_strength = strength;
+      scene.materials.push_back(material);
+      const rt::FlatScene flat = rt::flatten_scene(scene);
+      const rt::TextureSampler textures(scene);
+      rt::Hit hit;
+      hit.primitive = 0;
+      hit.u = hit.v = 0.25f;
+      rt::SurfaceTerms terms;
+      terms.ambient = rt::Vec3d(0.5);
+      rt::apply_surface_maps(flat, &textures, 0, scene.materials[0], hit, rt::texcoords_at(flat, 0, 0.5f, 0.25f, 0.25f),
+                             rt::Vec3d(1.0), terms);
+      const double r = u < 0.5f ? 0.0 : 1.0;
+      INFO("u " << u << ", strength " << strength);
+      CHECK(terms.ambient.r == Approx(0.5 * (1.0 + strength * (r - 1.0))).margin(1e-6));
+    }
+}

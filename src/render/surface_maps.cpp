@@ -85,8 +85,9 @@ void apply_surface_maps(const FlatScene& flat, const TextureSampler* textures, s
     terms.diffuse *= vertex_colour;
     terms.ambient *= vertex_colour;
   }
-  if (const auto occlusion = sample(TextureRole::occlusion))
-    terms.ambient *= 1.0 + double(material.occlusion_strength) * (occlusion->r - 1.0);
+  if (terms.ambient != Vec3d(0.0))  // glTF materials have none: no lookup for nothing
+    if (const auto occlusion = sample(TextureRole::occlusion))
+      terms.ambient *= 1.0 + double(material.occlusion_strength) * (occlusion->r - 1.0);
   if (const auto specular = sample(TextureRole::specular)) terms.specular *= *specular;
   if (const auto shininess = sample(TextureRole::shininess)) terms.shininess *= shininess->r;
 
