@@ -23,15 +23,6 @@ using Catch::Matchers::Contains;
 
 namespace {
 
-// Renders `scene` with its surface test, as rt render does.
-rt::Image render_scene(const rt::Scene& scene) {
-  const rt::FlatScene flat = rt::flatten_scene(scene);
-  const rt::SceneSurfaceTest test(scene, flat);
-  const auto accel = rt::build_accel(rt::AccelKind::embree, flat, rt::with_surface_test({}, test));
-  rt::RenderOptions options;
-  options.threads = 1;
-  return rt::render_image(scene, flat, *accel, options).image;
-}
 
 // A quad in the plane z = 0 facing +z (counter-clockwise seen from +z) with material `material`
 // (native keys: white diffuse 0.5, no ambient, plus `back_face`), and behind it at z = 1 a quad
@@ -59,17 +50,17 @@ TEST_CASE("a flipped back face is lit as its front, an unflipped one stays dark,
           "[back-faces]") {
   // The quad faces +z: the camera at z = 0.5 (before the glowing quad) sees its front, at z = -3
   // its back. With the light at the eye, n.l is the cosine of the pixel's ray and the quad's normal.
-  const double front = render_scene(two_quads("unflipped", 0.5)).at(4, 4).r;
+  const double front = rt_test::render_as_rt_does(two_quads("unflipped", 0.5)).at(4, 4).r;
   CHECK(front == Approx(0.5).epsilon(1e-3));  // C_d n.l / attenuation 1, n.l ~ 1 near the centre
   for (const char* mode : {"unflipped", "flipped", "culled"}) {
-    const rt::Image from_front = render_scene(two_quads(mode, 0.5));
+    const rt::Image from_front = rt_test::render_as_rt_does(two_quads(mode, 0.5));
     CHECK(from_front.at(4, 4).r == front);  // the front side does not depend on the mode
   }
   // From behind, with the light behind too.
-  CHECK(render_scene(two_quads("flipped", -3.0)).at(4, 4).r == Approx(front).epsilon(1e-6));
-  CHECK(render_scene(two_quads("unflipped", -3.0)).at(4, 4).r == 0.0f);  // n.l < 0, no ambient
+  CHECK(rt_test::render_as_rt_does(two_quads("flipped", -3.0)).at(4, 4).r == Approx(front).epsilon(1e-6));
+  CHECK(rt_test::render_as_rt_does(two_quads("unflipped", -3.0)).at(4, 4).r == 0.0f);  // n.l < 0, no ambient
   // Culled: the ray goes on to the glowing quad behind (which faces the camera).
-  CHECK(render_scene(two_quads("culled", -3.0)).at(4, 4).r == Approx(0.7).epsilon(1e-6));
+  CHECK(rt_test::render_as_rt_does(two_quads("culled", -3.0)).at(4, 4).r == Approx(0.7).epsilon(1e-6));
 }
 
 TEST_CASE("culled back faces let rays of every kind through, in every intersector, and front faces stop them",
@@ -203,7 +194,7 @@ TEST_CASE("TwoSidedPlane (glTF sample) is lit alike from above and below", "[bac
     scene.camera.up = rt::Vec3d(0, 0, -1);
     scene.lights.assign(1, rt::Light{});
     scene.lights[0].position = rt::Vec4d(scene.camera.eye, 1.0);
-    const rt::Image image = render_scene(scene);
+    const rt::Image image = rt_test::render_as_rt_does(scene);
     double sum = 0.0;
     for (const rt::Color& c : image.pixels) sum += double(c.r) + double(c.g) + double(c.b);
     return sum;

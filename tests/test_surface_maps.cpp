@@ -88,12 +88,7 @@ rt::Image render_gltf(const rt_test::TempDir& dir, const std::string& gltf) {
   rt_test::write_file(dir / "quad.gltf", gltf);
   rt::Scene scene = rt::load_gltf_scene(dir / "quad.gltf");
   scene.settings.width = scene.settings.height = 16;
-  const rt::FlatScene flat = rt::flatten_scene(scene);
-  const rt::SceneSurfaceTest test(scene, flat);
-  const auto accel = rt::build_accel(rt::AccelKind::embree, flat, rt::with_surface_test({}, test));
-  rt::RenderOptions options;
-  options.threads = 1;
-  return rt::render_image(scene, flat, *accel, options).image;
+  return rt_test::render_as_rt_does(scene);
 }
 
 // The tangent-space normal a 8-bit texel encodes, unit (glTF: 2 c / 255 - 1 per channel).

@@ -19,6 +19,10 @@
 #include <utility>
 #include <vector>
 
+#include "rt/accel/accel.h"
+#include "rt/flatten/flatten.h"
+#include "rt/render/render.h"
+#include "rt/render/surface_test.h"
 #include "rt/scene/scene.h"
 
 namespace rt_test {
@@ -50,6 +54,17 @@ inline rt::Scene make_scene(const std::vector<std::pair<rt::TriangleMesh, std::u
     root.models.push_back({std::make_shared<const rt::TriangleMesh>(mesh), material});
   scene.nodes.push_back(std::move(root));
   return scene;
+}
+
+// Renders `scene` on one thread with Embree and the scene's surface test (alpha, culling), as
+// rt render does; the linear image.
+inline rt::Image render_as_rt_does(const rt::Scene& scene) {
+  const rt::FlatScene flat = rt::flatten_scene(scene);
+  const rt::SceneSurfaceTest test(scene, flat);
+  const auto accel = rt::build_accel(rt::AccelKind::embree, flat, rt::with_surface_test({}, test));
+  rt::RenderOptions options;
+  options.threads = 1;
+  return rt::render_image(scene, flat, *accel, options).image;
 }
 
 // Whole file contents as bytes ("" if it cannot be read).
