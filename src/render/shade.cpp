@@ -549,7 +549,7 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
                         counts, throughput, path_seed, shadows, [&](SkipRule rule) { skip(rule, -1); });
   } else if (depth < context.scene.settings.max_depth) {
     const Vec3d next_throughput = throughput * reflective;
-    if (prune && !terms.reflection) {
+    if (prune && (!terms.reflection || reflective == Vec3d(0.0))) {  // black here (a texel's, a blend's alpha 0)
       skip(SkipRule::black_reflection, -1);
     } else if (plan.options.min_throughput > 0.0 && max_channel(next_throughput) < plan.options.min_throughput) {
       skip(SkipRule::low_throughput, -1);
