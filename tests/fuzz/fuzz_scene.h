@@ -22,6 +22,7 @@
 #include "rt/flatten/flatten.h"
 #include "rt/io/load_scene.h"
 #include "rt/render/render.h"
+#include "rt/render/surface_test.h"
 
 namespace rt_fuzz {
 
@@ -56,7 +57,9 @@ inline void exercise(const std::filesystem::path& file) {
     scene.settings.width = 16;
     scene.settings.height = 12;
     scene.settings.max_depth = std::min(scene.settings.max_depth, 3);
-    const std::unique_ptr<rt::Accel> accel = rt::build_accel(rt::AccelKind::embree, flat);
+    const rt::SceneSurfaceTest surface_test(scene, flat);  // alpha and culling filters, as rt render builds them
+    const std::unique_ptr<rt::Accel> accel =
+        rt::build_accel(rt::AccelKind::embree, flat, rt::with_surface_test({}, surface_test));
     rt::RenderOptions options;
     options.threads = 1;
     rt::render_image(scene, flat, *accel, options);
