@@ -67,20 +67,6 @@ std::string to_string(SkipRule rule) {
   return "?";
 }
 
-// `m` with the largest colours its per-hit maps can give it (texels and vertex colours lie in
-// [0, 1]): a glTF metallic-roughness material's diffuse is at most its base colour, its highlight
-// and mirror weight at most the larger of the base colour and the non-metal's F0
-// (phong_from_metallic_roughness, whose weights 1 - m + m r and 1 - m r are at most 1).
-Material largest_terms(const Material& m) {
-  if (!m.metallic_roughness) return m;
-  Material bound = m;
-  const Color base = m.metallic_roughness->base_color;
-  bound.diffuse = base;
-  bound.specular = glm::max(base, Color(m.metallic_roughness->dielectric_f0));
-  bound.reflective = bound.specular;
-  return bound;
-}
-
 bool is_convex_for_certain(const FlatScene& flat) {
   if (flat.triangles.empty() || !flat.spheres.empty()) return false;
   // Only the vertices the triangles use (flatten may leave others unused).
@@ -99,6 +85,20 @@ bool is_convex_for_certain(const FlatScene& flat) {
 }
 
 namespace {
+
+// `m` with the largest colours its per-hit maps can give it (texels and vertex colours lie in
+// [0, 1]): a glTF metallic-roughness material's diffuse is at most its base colour, its highlight
+// and mirror weight at most the larger of the base colour and the non-metal's F0
+// (phong_from_metallic_roughness, whose weights 1 - m + m r and 1 - m r are at most 1).
+Material largest_terms(const Material& m) {
+  if (!m.metallic_roughness) return m;
+  Material bound = m;
+  const Color base = m.metallic_roughness->base_color;
+  bound.diffuse = base;
+  bound.specular = glm::max(base, Color(m.metallic_roughness->dielectric_f0));
+  bound.reflective = bound.specular;
+  return bound;
+}
 
 // The area-light part of plan_effects: the emitters and what is done with each. Area lights carry
 // no ambient term (docs/area-lights.md), so an emitter lights only diffuse and specular colours.
