@@ -326,3 +326,15 @@ TEST_CASE("occlusion maps scale the ambient term by 1 + strength (r - 1)", "[sur
       CHECK(terms.ambient.r == Approx(0.5 * (1.0 + strength * (r - 1.0))).margin(1e-6));
     }
 }
+
+TEST_CASE("rt info lists a material's per-hit maps", "[surface-maps][cli]") {
+  rt_test::TempDir dir;
+  rt_test::write_file(dir / "quad.gltf",
+                      quad_gltf(matte(R"(, "normalTexture": { "index": 0, "scale": 0.5 },
+                                        "occlusionTexture": { "index": 1, "texCoord": 1, "strength": 0.25 })"),
+                                rt::Vec3d(0, 0, -1)));
+  const rt_test::RtRun run = rt_test::run_rt_in(dir, "info quad.gltf");
+  REQUIRE(run.status == 0);
+  CHECK_THAT(run.out, Catch::Matchers::Contains("normal map ") && Catch::Matchers::Contains("(scale 0.5)") &&
+                          Catch::Matchers::Contains("on TEXCOORD_1 (strength 0.25)"));
+}

@@ -511,6 +511,31 @@ std::string glass_text(const Material& m) {
   return text;
 }
 
+// The per-hit maps of `m` for `rt info` (", normal map N (scale 1), metallic-roughness M x map R"),
+// empty when it has none; with a texture transform or the second coordinate set, said per map.
+std::string maps_text(const Material& m) {
+  const auto map = [](const Texture& t) {
+    std::string text = t.path;
+    if (t.texcoord == 1) text += " on TEXCOORD_1";
+    if (!t.transform.identity())
+      text += fmt::format(" (offset ({}, {}), rotation {}, scale ({}, {}))", t.transform.offset.x, t.transform.offset.y,
+                          t.transform.rotation, t.transform.scale.x, t.transform.scale.y);
+    return text;
+  };
+  std::string text;
+  if (const auto& mr = m.metallic_roughness)
+    text += fmt::format(", per hit: base ({}, {}, {}) metallic {} roughness {}{}", mr->base_color.r, mr->base_color.g,
+                        mr->base_color.b, mr->metallic, mr->roughness,
+                        mr->texture.empty() ? "" : " x map " + map(mr->texture));
+  if (!m.normal_texture.empty()) text += fmt::format(", normal map {} (scale {})", map(m.normal_texture), m.normal_scale);
+  if (!m.occlusion_texture.empty())
+    text += fmt::format(", occlusion map {} (strength {})", map(m.occlusion_texture), m.occlusion_strength);
+  if (!m.specular_texture.empty()) text += ", specular map " + map(m.specular_texture);
+  if (!m.shininess_texture.empty()) text += ", shininess map " + map(m.shininess_texture);
+  if (!m.bump_texture.empty()) text += fmt::format(", bump map {} (scale {})", map(m.bump_texture), m.bump_scale);
+  return text;
+}
+
 // ", back faces flipped" or ", back faces culled" for `rt info`; empty for the course's unflipped.
 std::string back_face_text(const Material& m) {
   if (m.is_dielectric() || m.back_face == BackFace::unflipped) return "";
@@ -551,10 +576,10 @@ int run_info(const std::string& scene_path, const GltfOptions& gltf, const Scene
                bounds.lo.z, bounds.hi.x, bounds.hi.y, bounds.hi.z);
   fmt::print("materials   {}\n", scene.materials.size());
   for (const Material& m : scene.materials)
-    fmt::print("  {:<16} diffuse ({}, {}, {}), specular ({}, {}, {}), shininess {}{}{}{}{}\n", m.name, m.diffuse.r,
+    fmt::print("  {:<16} diffuse ({}, {}, {}), specular ({}, {}, {}), shininess {}{}{}{}{}{}\n", m.name, m.diffuse.r,
                m.diffuse.g, m.diffuse.b, m.specular.r, m.specular.g, m.specular.b, m.shininess,
-               m.diffuse_texture.empty() ? "" : ", texture " + m.diffuse_texture.path, glass_text(m), alpha_text(m),
-               back_face_text(m));
+               m.diffuse_texture.empty() ? "" : ", texture " + m.diffuse_texture.path, maps_text(m), glass_text(m),
+               alpha_text(m), back_face_text(m));
   fmt::print("lights      {}\n", scene.lights.size());
   for (const Light& l : scene.lights) {
     if (l.is_directional())
