@@ -338,3 +338,20 @@ TEST_CASE("rt info lists a material's per-hit maps", "[surface-maps][cli]") {
   CHECK_THAT(run.out, Catch::Matchers::Contains("normal map ") && Catch::Matchers::Contains("(scale 0.5)") &&
                           Catch::Matchers::Contains("on TEXCOORD_1 (strength 0.25)"));
 }
+
+TEST_CASE("glTF glass under a metallic-roughness texture transmits only where the texel is not metal",
+          "[surface-maps][gltf][glass]") {
+  rt_test::TempDir dir;
+  // Left half dielectric, right half metal; behind the quad, a white background.
+  const std::string material = R"({ "pbrMetallicRoughness": { "baseColorFactor": [0.8, 0.8, 0.8, 1],
+      "metallicFactor": 1, "roughnessFactor": 0.5, "metallicRoughnessTexture": { "index": 3 } },
+      "extensions": { "KHR_materials_transmission": { "transmissionFactor": 1 } } })";
+  rt_test::write_file(dir / "quad.gltf", quad_gltf(material, rt::Vec3d(0, 0, -1)));
+  rt::Scene scene = rt::load_gltf_scene(dir / "quad.gltf");
+  REQUIRE(scene.materials.at(0).is_dielectric());
+  scene.settings.width = scene.settings.height = 16;
+  scene.settings.background = rt::Color(1.0f);
+  const rt::Image image = rt_test::render_as_rt_does(scene);
+  CHECK(image.at(3, 8).g > 0.7f);   // through the glass: the background x (1 - F) x base colour 0.8
+  CHECK(image.at(12, 8).g < 0.3f);  // the metal: lit diffuse only, nothing transmitted
+}
