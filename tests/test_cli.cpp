@@ -86,6 +86,11 @@ TEST_CASE("rt render --stats writes the documented JSON", "[cli]") {
   }
   CHECK(stats.at("time_s").at("total").get<double>() >= stats.at("time_s").at("render").get<double>());
   CHECK(stats.at("time_s").at("total").get<double>() >= sum - 1e-6);  // phases are disjoint parts of it
+  // The first finished tile comes after loading, flattening and building, before the render ends.
+  const nlohmann::json& time = stats.at("time_s");
+  const double first_pixel = time.at("first_pixel").get<double>();
+  CHECK(first_pixel >= time.at("load").get<double>() + time.at("flatten").get<double>() + time.at("build").get<double>());
+  CHECK(first_pixel <= time.at("total").get<double>() - time.at("write").get<double>() + 1e-6);
 
   // The effects plan and the ray budget: per-light shadow rays and per-depth reflections add up to
   // the totals, shares of render time to about 1, skipped rays are listed per rule.

@@ -285,6 +285,7 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
   options.on_progress = [&](double fraction) { progress.update(fraction); };
   const ScopedInterruptHandler interrupt_handler;  // while rendering; before, a signal ends the process
   options.cancel = &interrupted;
+  const double render_start_s = seconds_since(start);
   const RenderResult result = render_image(scene, flat, *accel, options);
   progress.finish();
   ImageHeader header;
@@ -359,7 +360,8 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
     stats["ray_budget"] = ray_budget_json(result, scene);
     stats["mrays_per_s"] = mrays;
     stats["time_s"] = {{"load", load_s},     {"flatten", flatten_s}, {"build", build_s},
-                       {"render", result.seconds}, {"write", write_s},   {"total", total_s}};
+                       {"render", result.seconds}, {"write", write_s},   {"total", total_s},
+                       {"first_pixel", render_start_s + result.first_tile_seconds}};
     write_text_file_atomically(args.stats_path, stats.dump(2) + "\n");
   }
   if (args.explain) {

@@ -78,6 +78,7 @@ void check_render_memory(const Scene& scene, const std::optional<PixelRegion>& r
 
 RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel& accel,
                           const RenderOptions& options) {
+  const auto entered = std::chrono::steady_clock::now();
   check_render_memory(scene, options.region);
   const int width = scene.settings.width;
   const PixelRegion region = checked_region(scene, options.region);
@@ -253,6 +254,8 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
       }
       result.tile_done[std::size_t(t)] = 1;
       const int done = ++tiles_done;
+      if (done == 1)
+        result.first_tile_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - entered).count();
       if (options.on_tile || options.on_progress) {
         std::lock_guard lock(progress_mutex);
         if (options.on_tile) options.on_tile(PixelRegion{x0, y0, x1, y1}, result.image);

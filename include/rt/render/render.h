@@ -52,6 +52,9 @@ struct RenderResult {
   EffectsPlan plan;  // what the render skipped, decided by plan_effects before the first ray
   RayCounts rays;
   double seconds = 0.0;  // wall-clock time of the render loop
+  // Wall-clock time from entering render_image (texture set-up and the effects plan included) to
+  // the first finished tile: when the first pixels could be shown. 0 when no tile finished.
+  double first_tile_seconds = 0.0;
   // One flag per tile (RenderOptions::tile_size squares over the region, row-major): 1 when
   // finished, which all are unless the render was cancelled. Unfinished tiles are black in `image`.
   std::vector<std::uint8_t> tile_done;
