@@ -69,19 +69,9 @@ TEST_CASE("culled back faces let rays of every kind through, in every intersecto
   const rt::FlatScene flat = rt::flatten_scene(scene);
   const rt::SceneSurfaceTest test(scene, flat);
   REQUIRE(test.any());
-  struct Kind {
-    const char* name;
-    rt::AccelKind kind;
-    rt::EmbreeKernel kernel;
-  };
-  for (const Kind& k : {Kind{"embree native", rt::AccelKind::embree, rt::EmbreeKernel::native},
-                        Kind{"embree watertight", rt::AccelKind::embree, rt::EmbreeKernel::watertight},
-                        Kind{"reference", rt::AccelKind::reference, rt::EmbreeKernel::native},
-                        Kind{"reference barycentric", rt::AccelKind::reference_barycentric, rt::EmbreeKernel::native}}) {
+  for (const rt_test::Intersector& k : rt_test::kIntersectors) {
     INFO(k.name);
-    rt::AccelOptions options;
-    options.embree_kernel = k.kernel;
-    const auto accel = rt::build_accel(k.kind, flat, rt::with_surface_test(options, test));
+    const auto accel = k.build(flat, &test);
     REQUIRE(accel->surface_test() == &test);
     rt::Ray towards_front;  // from between the quads along -z: the culled quad's front at t = 0.5
     towards_front.origin = rt::Vec3f(0.1f, 0.2f, 0.5f);

@@ -488,17 +488,8 @@ TEST_CASE("gltf alpha: MASK cuts out exactly the texels below the cutoff, in eve
         expect_quad.push_back(mask ? a >= 0.5 : a > 0.0);  // closest hits: the quad's surface is there
         expect_blocked.push_back(true);                    // the wall blocks every ray anyway
       }
-    struct Kind {
-      const char* name;
-      rt::AccelKind kind;
-      rt::EmbreeKernel kernel;
-    };
-    for (const Kind& k : {Kind{"embree native", rt::AccelKind::embree, rt::EmbreeKernel::native},
-                          Kind{"embree watertight", rt::AccelKind::embree, rt::EmbreeKernel::watertight},
-                          Kind{"reference", rt::AccelKind::reference, rt::EmbreeKernel::native}}) {
-      rt::AccelOptions options;
-      options.embree_kernel = k.kernel;
-      const auto accel = rt::build_accel(k.kind, flat, rt::with_surface_test(options, test));
+    for (const rt_test::Intersector& k : rt_test::kIntersectors) {
+      const auto accel = k.build(flat, &test);
       REQUIRE(accel->surface_test() == &test);
       std::vector<rt::Hit> coherent(rays.size());
       accel->intersect_coherent(rays, coherent);

@@ -56,6 +56,25 @@ inline rt::Scene make_scene(const std::vector<std::pair<rt::TriangleMesh, std::u
   return scene;
 }
 
+// Every intersector a test can build: Embree's native and watertight kernels and both references.
+struct Intersector {
+  const char* name;
+  rt::AccelKind kind;
+  rt::EmbreeKernel kernel;
+  // This intersector over `flat` with `test` (may be null) as its surface test.
+  std::unique_ptr<rt::Accel> build(const rt::FlatScene& flat, const rt::SurfaceTest* test) const {
+    rt::AccelOptions options;
+    options.embree_kernel = kernel;
+    options.surface_test = test;
+    return rt::build_accel(kind, flat, options);
+  }
+};
+inline constexpr Intersector kIntersectors[] = {
+    {"embree native", rt::AccelKind::embree, rt::EmbreeKernel::native},
+    {"embree watertight", rt::AccelKind::embree, rt::EmbreeKernel::watertight},
+    {"reference", rt::AccelKind::reference, rt::EmbreeKernel::native},
+    {"reference barycentric", rt::AccelKind::reference_barycentric, rt::EmbreeKernel::native}};
+
 // Renders `scene` on one thread with Embree and the scene's surface test (alpha, culling), as
 // rt render does; the linear image.
 inline rt::Image render_as_rt_does(const rt::Scene& scene) {

@@ -157,8 +157,7 @@ Vec3d ray_direction(const RTCRayN* ray, unsigned n, unsigned i) {
 // block the ray).
 template <bool kOcclusion>
 bool surface_counts(const UserGeometryData* data, unsigned prim, float b1, float b2, const Vec3d& direction) {
-  const bool back_face = arrives_from_behind(*data->flat, prim, direction);
-  return kOcclusion ? data->test->blocks(prim, b1, b2, back_face) : data->test->hit_counts(prim, b1, b2, back_face);
+  return kOcclusion ? data->test->blocks(prim, b1, b2, direction) : data->test->hit_counts(prim, b1, b2, direction);
 }
 
 // Geometry filters of the native tested triangles (Embree's documented way to cut out surfaces,

@@ -125,7 +125,10 @@ bool intersect_sphere(const Vec3d& origin, const Vec3d& direction, double tnear,
 }
 
 ReferenceAccel::ReferenceAccel(const FlatScene& scene, ReferenceTest test, const SurfaceTest* surface_test)
-    : test_(test), surface_test_(surface_test), spheres_(scene.spheres) {
+    : test_(test), spheres_(scene.spheres) {
+  // Kept only when it tests some triangle, as the Embree backend does.
+  for (std::uint32_t t = 0; surface_test && t < scene.triangle_count() && !surface_test_; ++t)
+    if (surface_test->tested(t)) surface_test_ = surface_test;
   triangles_.reserve(scene.triangle_count());
   for (const Vec3u& tri : scene.triangles)
     triangles_.push_back({Vec3d(scene.positions[tri.x]), Vec3d(scene.positions[tri.y]), Vec3d(scene.positions[tri.z])});
@@ -141,11 +144,8 @@ bool ReferenceAccel::intersect_one(const TriangleD& tri, const Vec3d& origin, co
 bool ReferenceAccel::counts(std::uint32_t triangle, const Vec3d& direction, const TriangleHitD& hit, bool occlusion) const {
   if (!surface_test_ || !surface_test_->tested(triangle)) return true;
   const auto b1 = static_cast<float>(hit.b1), b2 = static_cast<float>(hit.b2);
-  // arrives_from_behind on the same double copies of the float32 vertices.
-  const TriangleD& tri = triangles_[triangle];
-  const bool back_face = glm::dot(glm::cross(tri.p1 - tri.p0, tri.p2 - tri.p0), direction) > 0.0;
-  return occlusion ? surface_test_->blocks(triangle, b1, b2, back_face)
-                   : surface_test_->hit_counts(triangle, b1, b2, back_face);
+  return occlusion ? surface_test_->blocks(triangle, b1, b2, direction)
+                   : surface_test_->hit_counts(triangle, b1, b2, direction);
 }
 
 Hit ReferenceAccel::intersect(const Ray& ray) const {

@@ -283,13 +283,12 @@ std::shared_ptr<const TriangleMesh> GltfReader::read_primitive(int mesh_index, i
       fail(at, fmt::format("{} values for {} positions", values.size() / std::size_t(components), vertex_count));
     return values;
   };
-  // Which coordinate sets the material's textures read, and whether it is normal-mapped.
+  // Which coordinate sets the material's textures read (its alpha is the base colour texture's),
+  // and whether it is normal-mapped.
   bool wants_set[2] = {false, false};
-  for (const Texture* texture : {&material.diffuse_texture, &material.emission_texture, &material.transmission_texture,
-                                 &material.normal_texture, &material.occlusion_texture, &material.alpha_texture})
-    if (!texture->empty()) wants_set[texture->texcoord] = true;
-  if (material.metallic_roughness && !material.metallic_roughness->texture.empty())
-    wants_set[material.metallic_roughness->texture.texcoord] = true;
+  for (int role = 0; role < kTextureRoleCount; ++role)
+    if (const Texture* texture = texture_for(material, static_cast<TextureRole>(role)); texture && !texture->empty())
+      wants_set[texture->texcoord] = true;
   const bool normal_mapped = !material.normal_texture.empty();
 
   const std::vector<double> normals = read_vertex_attribute("NORMAL", 3);

@@ -26,29 +26,12 @@ bool is_colour(TextureRole role) {
   return role == TextureRole::diffuse || role == TextureRole::emission || role == TextureRole::specular;
 }
 
-// Material `m`'s texture for `role`, when the shader reads it.
-const Texture* texture_for(const Material& m, TextureRole role) {
-  switch (role) {
-    case TextureRole::diffuse: return &m.diffuse_texture;
-    case TextureRole::emission: return m.emits_light ? &m.emission_texture : nullptr;
-    case TextureRole::transmission: return m.is_dielectric() && m.transmission_mix ? &m.transmission_texture : nullptr;
-    case TextureRole::metallic_roughness: return m.metallic_roughness ? &m.metallic_roughness->texture : nullptr;
-    case TextureRole::normal: return &m.normal_texture;
-    case TextureRole::occlusion: return &m.occlusion_texture;
-    case TextureRole::specular: return &m.specular_texture;
-    case TextureRole::shininess: return &m.shininess_texture;
-    case TextureRole::bump: return &m.bump_texture;
-  }
-  return nullptr;
-}
-
 }  // namespace
 
 struct TextureSampler::Impl {
   struct Lookup {
-    int slot = -1;  // in `files`; -1: none
-    int texcoord = 0;
-    TextureTransform transform;
+    int slot = -1;    // in `files`; -1: none
+    Texture texture;  // its coordinate set and transform (Texture::lookup_uv), without the bytes
   };
   std::unique_ptr<TextureFiles> files;  // null until a material has a texture
   std::vector<std::array<Lookup, kTextureRoleCount>> lookups;  // per material and role
@@ -80,6 +63,21 @@ struct TextureSampler::Impl {
   }
 };
 
+const Texture* texture_for(const Material& m, TextureRole role) {
+  switch (role) {
+    case TextureRole::diffuse: return &m.diffuse_texture;
+    case TextureRole::emission: return m.emits_light ? &m.emission_texture : nullptr;
+    case TextureRole::transmission: return m.is_dielectric() && m.transmission_mix ? &m.transmission_texture : nullptr;
+    case TextureRole::metallic_roughness: return m.metallic_roughness ? &m.metallic_roughness->texture : nullptr;
+    case TextureRole::normal: return &m.normal_texture;
+    case TextureRole::occlusion: return &m.occlusion_texture;
+    case TextureRole::specular: return &m.specular_texture;
+    case TextureRole::shininess: return &m.shininess_texture;
+    case TextureRole::bump: return &m.bump_texture;
+  }
+  return nullptr;
+}
+
 TextureSampler::TextureSampler(const Scene& scene) : impl_(std::make_unique<Impl>()) {
   impl_->lookups.resize(scene.materials.size());
   std::map<const std::string*, std::string> written;
@@ -92,8 +90,8 @@ TextureSampler::TextureSampler(const Scene& scene) : impl_(std::make_unique<Impl
       if (path.empty()) continue;
       Impl::Lookup& lookup = impl_->lookups[m][static_cast<std::size_t>(r)];
       lookup.slot = impl_->files->open(path, texture->wrap_s, texture->wrap_t);
-      lookup.texcoord = texture->texcoord;
-      lookup.transform = texture->transform;
+      lookup.texture = *texture;
+      lookup.texture.encoded = nullptr;
     }
 }
 
@@ -104,10 +102,8 @@ bool TextureSampler::has(std::uint32_t material, TextureRole role) const { retur
 Vec3f TextureSampler::sample(std::uint32_t material, TextureRole role, const TexCoords& uv) const {
   const Impl::Lookup* lookup = impl_->find(material, role);
   if (!lookup) return Vec3f(1.0f);
-  const Vec2f& chosen = lookup->texcoord == 1 ? uv.uv1 : uv.uv0;
   float rgb[3] = {1.0f, 1.0f, 1.0f};
-  if (!impl_->files->sample(lookup->slot, lookup->transform.identity() ? chosen : lookup->transform.apply(chosen), rgb))
-    return Vec3f(1.0f);
+  if (!impl_->files->sample(lookup->slot, lookup->texture.lookup_uv(uv), rgb)) return Vec3f(1.0f);
   if (!is_colour(role)) return {rgb[0], rgb[1], rgb[2]};
   return {srgb_to_linear(rgb[0]), srgb_to_linear(rgb[1]), srgb_to_linear(rgb[2])};
 }

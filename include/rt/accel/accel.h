@@ -61,22 +61,23 @@ class EmbreeDevice;  // rt/accel/embree_accel.h
 
 // Which candidate hits on triangles count, as the intersectors see them: alpha cut-outs and
 // see-through surfaces, and back faces that are culled. `triangle` is in FlatScene numbering,
-// (b1, b2) are the candidate's barycentrics, and `back_face` says the ray arrives from behind
-// (see arrives_from_behind). Implemented by rt/render/surface_test.h; thread-safe.
+// (b1, b2) are the candidate's barycentrics, and `direction` is the ray's (world space, any
+// length), from which a culling test decides whether the ray meets the triangle from behind
+// (arrives_from_behind). Implemented by rt/render/surface_test.h; thread-safe.
 class SurfaceTest {
  public:
   virtual ~SurfaceTest() = default;
   // True when hits on `triangle` need the test (alpha below 1 somewhere, or culled back faces).
   virtual bool tested(std::uint32_t triangle) const = 0;
   // Closest-hit queries: whether the hit counts (a surface that is there at that point).
-  virtual bool hit_counts(std::uint32_t triangle, float b1, float b2, bool back_face) const = 0;
+  virtual bool hit_counts(std::uint32_t triangle, float b1, float b2, const Vec3d& direction) const = 0;
   // Occlusion (shadow) queries: whether the hit blocks the ray.
-  virtual bool blocks(std::uint32_t triangle, float b1, float b2, bool back_face) const = 0;
+  virtual bool blocks(std::uint32_t triangle, float b1, float b2, const Vec3d& direction) const = 0;
 };
 
 // Whether a ray along `direction` (world space) meets triangle `triangle` of `flat` from behind:
 // against its geometric normal (p1 - p0) x (p2 - p0), computed in double from the float32
-// vertices, so that every backend decides alike.
+// vertices, so that the decision does not depend on the backend that asks.
 inline bool arrives_from_behind(const FlatScene& flat, std::uint32_t triangle, const Vec3d& direction) {
   const Vec3u tri = flat.triangles[triangle];
   const Vec3d p0(flat.positions[tri.x]), p1(flat.positions[tri.y]), p2(flat.positions[tri.z]);

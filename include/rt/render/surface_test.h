@@ -24,15 +24,19 @@ class SceneSurfaceTest final : public SurfaceTest {
   const SceneAlpha& alpha() const { return alpha_; }
 
   bool tested(std::uint32_t triangle) const override { return culled(triangle) || alpha_.tested(triangle); }
-  bool hit_counts(std::uint32_t triangle, float b1, float b2, bool back_face) const override {
-    return !(back_face && culled(triangle)) && (!alpha_.tested(triangle) || alpha_.hit_counts(triangle, b1, b2));
+  bool hit_counts(std::uint32_t triangle, float b1, float b2, const Vec3d& direction) const override {
+    return !culled_from(triangle, direction) && (!alpha_.tested(triangle) || alpha_.hit_counts(triangle, b1, b2));
   }
-  bool blocks(std::uint32_t triangle, float b1, float b2, bool back_face) const override {
-    return !(back_face && culled(triangle)) && (!alpha_.tested(triangle) || alpha_.blocks(triangle, b1, b2));
+  bool blocks(std::uint32_t triangle, float b1, float b2, const Vec3d& direction) const override {
+    return !culled_from(triangle, direction) && (!alpha_.tested(triangle) || alpha_.blocks(triangle, b1, b2));
   }
 
  private:
   bool culled(std::uint32_t triangle) const { return culled_[flat_.material_ids[triangle]] != 0; }
+  // The facing is computed only for culled materials: alpha-only candidates skip it.
+  bool culled_from(std::uint32_t triangle, const Vec3d& direction) const {
+    return culled(triangle) && arrives_from_behind(flat_, triangle, direction);
+  }
 
   const FlatScene& flat_;
   SceneAlpha alpha_;

@@ -26,6 +26,10 @@ enum class TextureRole : std::uint8_t {
 };
 inline constexpr int kTextureRoleCount = 9;
 
+// Material `m`'s texture for `role` when the shader reads it (emission only for emitters,
+// transmission only for glTF glass), else null; it may be empty.
+const Texture* texture_for(const Material& m, TextureRole role);
+
 // The textures of a scene's materials, ready to sample from many threads at once. Lookups are
 // bilinear on the full-resolution image with no derivatives and no MIP-mapping: a Whitted
 // renderer traces one ray per pixel, so there is no footprint to filter over. Each texture is
