@@ -174,8 +174,19 @@ FlatScene flatten_scene(const Scene& scene, const FlattenOptions& options) {
   };
   const std::uint64_t vertex_total = instanced_total([](const TriangleMesh& mesh) { return mesh.positions.size(); });
   const std::uint64_t triangle_total = instanced_total([](const TriangleMesh& mesh) { return mesh.triangles.size(); });
-  const std::uint64_t bytes = vertex_total * (2 * sizeof(Vec3f) + sizeof(Vec2f)) +
-                              triangle_total * (sizeof(Vec3u) + sizeof(std::uint32_t));
+  // Per vertex: position, normal, texcoords, and the optional attributes when some mesh has them
+  // (every vertex gets them then).
+  std::uint64_t vertex_bytes = 2 * sizeof(Vec3f) + sizeof(Vec2f);
+  bool has_texcoords1 = false, has_colors = false, has_tangents = false;
+  for (const Node& node : scene.nodes)
+    for (const Model& model : node.models)
+      if (model.mesh) {
+        has_texcoords1 = has_texcoords1 || !model.mesh->texcoords1.empty();
+        has_colors = has_colors || !model.mesh->colors.empty();
+        has_tangents = has_tangents || !model.mesh->tangents.empty();
+      }
+  vertex_bytes += (has_texcoords1 ? sizeof(Vec2f) : 0) + (has_colors ? sizeof(Vec4f) : 0) + (has_tangents ? sizeof(Vec4f) : 0);
+  const std::uint64_t bytes = vertex_total * vertex_bytes + triangle_total * (sizeof(Vec3u) + sizeof(std::uint32_t));
   if (const auto shortfall = memory_shortfall(bytes))
     throw InputError(scene.source, "", fmt::format("flattening {} triangles and {} vertices (every instance) {}",
                                                    triangle_total, vertex_total, *shortfall));
