@@ -6,6 +6,8 @@
 
 #include <array>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <limits>
 #include <memory>
 #include <random>
@@ -344,9 +346,12 @@ TEST_CASE("intersect_coherent and occluded_coherent answer exactly as single ray
   check_same(*tie_accel, tie_rays);
 }
 
-TEST_CASE("Embree's compact layout gives the same hits as the default one", "[accel]") {
-  // embree_compact_from_triangles switches big scenes to RTC_SCENE_FLAG_COMPACT; the renderer's
-  // images must not depend on that choice. Camera rays and incoherent rays over the default scene.
+TEST_CASE("Embree's compact layout gives the default layout's hits up to float rounding", "[accel]") {
+  // embree_compact_from_triangles switches big scenes to RTC_SCENE_FLAG_COMPACT. Its BVH leaves
+  // index the shared vertex buffer where the default ones hold copies of the vertices, and on AVX2
+  // (AMD EPYC, Embree 3.13.5) the two kernels round differently: hits agree to a few ulps, and a
+  // ray at a tie may take either triangle. On the AVX-512 machines of earlier sessions they were
+  // identical (docs/robustness.md). Camera rays and incoherent rays over the default scene.
   const bool robust = GENERATE(true, false);
   INFO("robust " << robust);
   const rt::Scene scene = rt::make_default_scene();
@@ -365,26 +370,47 @@ TEST_CASE("Embree's compact layout gives the same hits as the default one", "[ac
   std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
   for (int i = 0; i < 5000; ++i)
     rays.push_back(make_ray({2 * unit(random), 1 + unit(random), 2 * unit(random)}, {unit(random), unit(random), unit(random)}));
+  // The same hit up to rounding: t within 16 ulps (7 seen), u and v within 1e-5 (3e-6 seen); or
+  // another triangle at that t, which a few rays meet: through a shared edge, or where two
+  // triangles overlap in one plane (the default scene has one such pair, 28 and 100), since the
+  // lowest-index rule for ties sees t as each kernel rounds it.
+  const auto ulps = [](float x, float y) {
+    std::int32_t ix, iy;
+    std::memcpy(&ix, &x, sizeof ix);
+    std::memcpy(&iy, &y, sizeof iy);
+    return std::abs(std::int64_t(ix) - std::int64_t(iy));
+  };
+  std::size_t swaps = 0;
+  const auto same_hit = [&](const rt::Hit& x, const rt::Hit& y) {
+    if (x.found() != y.found()) return false;
+    if (!x.found()) return true;
+    if (ulps(x.t, y.t) > 16) return false;
+    if (x.primitive == y.primitive) return std::abs(x.u - y.u) < 1e-5f && std::abs(x.v - y.v) < 1e-5f;
+    ++swaps;
+    return true;
+  };
   std::size_t found = 0, mismatches = 0, occlusion_mismatches = 0;
   for (const rt::Ray& ray : rays) {
     const rt::Hit ha = a->intersect(ray), hb = b->intersect(ray);
     found += ha.found();
-    mismatches += !(ha.primitive == hb.primitive && ha.t == hb.t && ha.u == hb.u && ha.v == hb.v);
+    mismatches += !same_hit(ha, hb);
     occlusion_mismatches += a->occluded(ray) != b->occluded(ray);
   }
   CHECK(mismatches == 0);
+  CHECK(swaps <= rays.size() / 1000);
   CHECK(occlusion_mismatches == 0);
   CHECK(found > rays.size() / 4);
-  // Packets on the compact layout answer as single rays on the usual one.
+  // Packets on the compact layout answer as single rays on it.
   std::vector<rt::Hit> packet_hits(rays.size());
   std::vector<std::uint8_t> packet_blocked(rays.size());
   b->intersect_coherent(rays, packet_hits);
   b->occluded_coherent(rays, packet_blocked);
   std::size_t packet_mismatches = 0, packet_occlusion_mismatches = 0;
   for (std::size_t i = 0; i < rays.size(); ++i) {
-    const rt::Hit ha = a->intersect(rays[i]), &hb = packet_hits[i];
-    packet_mismatches += !(ha.primitive == hb.primitive && ha.t == hb.t && ha.u == hb.u && ha.v == hb.v);
-    packet_occlusion_mismatches += a->occluded(rays[i]) != bool(packet_blocked[i]);
+    const rt::Hit single = b->intersect(rays[i]), &packet = packet_hits[i];
+    packet_mismatches += !(single.primitive == packet.primitive && single.t == packet.t && single.u == packet.u &&
+                           single.v == packet.v);
+    packet_occlusion_mismatches += b->occluded(rays[i]) != bool(packet_blocked[i]);
   }
   CHECK(packet_mismatches == 0);
   CHECK(packet_occlusion_mismatches == 0);

@@ -124,6 +124,17 @@ int run_cli(int argc, char** argv) {
         ->check(whole_number_in(1, kMaxImageSide));
     command->add_option("--height", args.height, "Image height in pixels (alone: the width follows the scene's aspect ratio)")
         ->check(whole_number_in(1, kMaxImageSide));
+    command->add_option_function<std::string>(
+              "--texture-cache",
+              [&args](const std::string& text) {
+                const std::optional<std::uint64_t> bytes = parse_bytes(text);
+                if (!bytes || *bytes == 0)
+                  throw CLI::ValidationError("--texture-cache", fmt::format("'{}' is not a size such as 512M or 2G", text));
+                args.texture_cache = *bytes;
+              },
+              "Decoded textures kept in memory at most, e.g. 512M; scenes whose PNG and JPEG textures need more are "
+              "sampled through OpenImageIO's tiled cache of this size (slower); default: half the available memory")
+        ->type_name("SIZE");
     command->add_option("--max-depth", args.max_depth, "Reflection depth (0 = no reflections)")
         ->check(whole_number_in(0, kMaxReflectionDepth));
     command->add_option_function<std::string>(

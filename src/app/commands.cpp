@@ -181,6 +181,7 @@ RenderOptions render_options(const RenderArgs& args, const BatchContext& batch) 
   options.samples_per_pixel = args.spp;
   options.ray_offset = batch.ray_offset;
   options.effects = args.effects;
+  options.texture_cache_bytes = args.texture_cache;
   return options;
 }
 
@@ -320,6 +321,11 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
                result.first_non_finite_pixel->first, result.first_non_finite_pixel->second,
                result.first_non_finite_pixel->first, result.first_non_finite_pixel->second);
 
+  if (result.textures.tiled && !args.quiet)
+    fmt::print(stderr, "rt: note: the PNG and JPEG textures take {} decoded, more than the {} texture cache "
+               "(--texture-cache): they were sampled through OpenImageIO's tiled cache, bounded by it but slower\n",
+               format_bytes(result.textures.decoded_bytes), format_bytes(result.textures.budget_bytes));
+
   phase_start = Clock::now();
   write_image(result.image, output, header, scene.settings.display);
   const double write_s = seconds_since(phase_start);
@@ -357,6 +363,11 @@ Outcome render_scene(const RenderArgs& args, const std::string& scene_path, cons
                      {"area_light", result.rays.area_light},
                      {"total", result.rays.total()}};
     stats["effects"] = effects_json(result.plan, scene);
+    stats["textures"] = {{"decoded", result.textures.decoded},
+                         {"decoded_bytes", result.textures.decoded_bytes},
+                         {"through_openimageio", result.textures.through_oiio},
+                         {"cache_bytes", result.textures.budget_bytes},
+                         {"tiled", result.textures.tiled}};
     stats["ray_budget"] = ray_budget_json(result, scene);
     stats["mrays_per_s"] = mrays;
     stats["time_s"] = {{"load", load_s},     {"flatten", flatten_s}, {"build", build_s},

@@ -40,6 +40,7 @@ struct RenderArgs {
   std::string ray_offset = "robust";
   int threads = 0;
   std::uint64_t memory_limit = 0;  // bytes; 0: what the machine has available
+  std::uint64_t texture_cache = 0;  // bytes; 0: half the available memory
   int spp = 1;
   std::string stats_path;
   bool explain = false;

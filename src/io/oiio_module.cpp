@@ -36,6 +36,8 @@ class OiioTextureFiles final : public TextureFiles {
     for (const Slot& slot : slots_) system_->invalidate(slot.file);
   }
 
+  explicit OiioTextureFiles(std::uint64_t max_memory_bytes) : max_memory_bytes_(max_memory_bytes) {}
+
   int open(const std::string& path, TextureWrap wrap_s, TextureWrap wrap_t) override {
     if (!system_) {
       // The process-wide shared TextureSystem: OIIO 2.4's TextureSystem::destroy frees a private
@@ -47,11 +49,19 @@ class OiioTextureFiles final : public TextureFiles {
       system_->attribute("gray_to_rgb", 1);  // grey (+ alpha) images give grey RGB
       // Colour as stored, not multiplied by alpha: glTF and MTL keep the two apart (issue 20).
       system_->attribute("unassociatedalpha", 1);
+      // Bounded: untiled images (PNG, JPEG) are cached in 64x64 tiles read from their scanlines,
+      // at most max_memory_bytes_ of them. Unbounded: each is one tile, of OpenImageIO's default
+      // 256 MB cache.
+      system_->attribute("autotile", max_memory_bytes_ ? 64 : 0);
+      system_->attribute("max_memory_MB", max_memory_bytes_ ? float(double(max_memory_bytes_) / (1 << 20)) : 256.0f);
     }
     const OIIO::ustring file(path);
     OIIO::TextureSystem::TextureHandle* handle = system_->get_texture_handle(file);
     if (!handle) return -1;
-    slots_.push_back({file, handle, oiio_wrap(wrap_s), oiio_wrap(wrap_t)});
+    // gray_to_rgb expands one-channel images only: grey + alpha would give (grey, alpha, 0).
+    int channels = 0;
+    system_->get_texture_info(handle, nullptr, 0, OIIO::ustring("channels"), OIIO::TypeDesc::INT, &channels);
+    slots_.push_back({file, handle, oiio_wrap(wrap_s), oiio_wrap(wrap_t), channels == 2});
     return static_cast<int>(slots_.size()) - 1;
   }
 
@@ -62,7 +72,10 @@ class OiioTextureFiles final : public TextureFiles {
     options.twrap = s.wrap_t;
     options.mipmode = OIIO::TextureOpt::MipModeNoMIP;
     options.interpmode = OIIO::TextureOpt::InterpBilinear;
-    return system_->texture(s.handle, nullptr, options, uv.x, uv.y, 0, 0, 0, 0, 3, rgb);
+    if (!s.grey_alpha) return system_->texture(s.handle, nullptr, options, uv.x, uv.y, 0, 0, 0, 0, 3, rgb);
+    if (!system_->texture(s.handle, nullptr, options, uv.x, uv.y, 0, 0, 0, 0, 1, rgb)) return false;
+    rgb[1] = rgb[2] = rgb[0];
+    return true;
   }
 
  private:
@@ -70,7 +83,9 @@ class OiioTextureFiles final : public TextureFiles {
     OIIO::ustring file;
     OIIO::TextureSystem::TextureHandle* handle;
     OIIO::TextureOpt::Wrap wrap_s, wrap_t;
+    bool grey_alpha;  // two channels: the grey one is replicated
   };
+  std::uint64_t max_memory_bytes_;
   OIIO::TextureSystem* system_ = nullptr;
   std::vector<Slot> slots_;
 };
@@ -145,7 +160,10 @@ class Oiio final : public OiioModule {
   }
 
   std::optional<Image> read(const std::string& path, ImageHeader* header, std::string& error) const override {
-    auto input = OIIO::ImageInput::open(path);
+    // Colour as stored: the alpha channel is dropped, so it must not darken the colour either.
+    OIIO::ImageSpec config;
+    config.attribute("oiio:UnassociatedAlpha", 1);
+    auto input = OIIO::ImageInput::open(path, &config);
     if (!input) {
       error = first_line(OIIO::geterror());
       return std::nullopt;
@@ -170,7 +188,8 @@ class Oiio final : public OiioModule {
     }
     Image image(spec.width, spec.height);
     for (std::size_t i = 0; i < image.pixels.size(); ++i)
-      for (int c = 0; c < 3; ++c) image.pixels[i][c] = data[i * channels + std::min(c, channels - 1)];
+      for (int c = 0; c < 3; ++c)  // grey (and grey + alpha): grey replicated
+        image.pixels[i][c] = data[i * channels + (channels <= 2 ? 0 : c)];
     return image;
   }
 
@@ -240,7 +259,9 @@ class Oiio final : public OiioModule {
     return Vec4f(avg(0), avg(1), avg(2), channels >= 4 ? avg(3) : 1.0f);
   }
 
-  std::unique_ptr<TextureFiles> new_texture_files() const override { return std::make_unique<OiioTextureFiles>(); }
+  std::unique_ptr<TextureFiles> new_texture_files(std::uint64_t max_memory_bytes) const override {
+    return std::make_unique<OiioTextureFiles>(max_memory_bytes);
+  }
 };
 
 }  // namespace

@@ -15,7 +15,7 @@
 
 namespace rt {
 
-// Diffuse textures opened for sampling from many threads at once (one OIIO TextureSystem).
+// Textures opened for sampling from many threads at once (one OIIO TextureSystem).
 class TextureFiles {
  public:
   virtual ~TextureFiles() = default;
@@ -65,8 +65,10 @@ class OiioModule {
   };
   virtual std::optional<AlphaImage> read_alpha(const Texture& texture, bool grey_is_alpha) const = 0;
 
-  // A new, empty set of texture files.
-  virtual std::unique_ptr<TextureFiles> new_texture_files() const = 0;
+  // A new, empty set of texture files, in the process's one TextureSystem. With a nonzero
+  // `max_memory_bytes`, its cache holds at most that many bytes of 64x64 tiles (untiled images
+  // too); with 0, each image is one tile and the cache is OpenImageIO's default size.
+  virtual std::unique_ptr<TextureFiles> new_texture_files(std::uint64_t max_memory_bytes) const = 0;
 };
 
 // The extension OpenImageIO recognises encoded image bytes by (it also sniffs the content).

@@ -4,6 +4,8 @@
 #include <cmath>
 
 #include "io/oiio_module.h"
+#include "render/texture_cache.h"
+#include "rt/core/memory.h"
 
 namespace rt {
 
@@ -13,17 +15,23 @@ namespace {
 // sampler modes, OpenImageIO's conventions: texel i covers [i, i + 1) / size).
 int texel_index(float c, int size, TextureWrap wrap) {
   const double x = std::floor(double(c) * size);
-  if (!std::isfinite(x)) return 0;
-  switch (wrap) {
-    case TextureWrap::clamp_to_edge: return int(std::clamp(x, 0.0, double(size - 1)));
-    case TextureWrap::mirrored_repeat: {
-      const double period = 2.0 * size;
-      const double m = x - period * std::floor(x / period);  // [0, 2 size)
-      return int(m < size ? m : period - 1.0 - m);
-    }
-    case TextureWrap::repeat: break;
-  }
-  return int(x - size * std::floor(x / size));
+  return std::isfinite(x) ? wrap_texel_index(x, size, wrap) : 0;
+}
+
+// `texture`'s alpha per texel (OiioModule::read_alpha's contract), decoded by rt when it is a
+// PNG or JPEG (sharing the decode with the colour lookups), else by OpenImageIO.
+std::optional<OiioModule::AlphaImage> read_alpha(const Texture& texture, bool grey_is_alpha) {
+  const auto decoded = find_decoded_texture(texture, available_memory_bytes() / 2);
+  if (!decoded) return oiio_module().read_alpha(texture, grey_is_alpha);
+  const DecodedImage* image = decoded->image();
+  if (!image) return std::nullopt;
+  const ImageLayout& l = image->layout;
+  const int channel = l.channels == 2 || l.channels == 4 ? l.channels - 1 : grey_is_alpha ? 0 : -1;
+  if (channel < 0) return std::nullopt;
+  OiioModule::AlphaImage alpha{l.width, l.height, std::vector<float>(std::size_t(l.width) * std::size_t(l.height))};
+  for (int y = 0; y < l.height; ++y)
+    for (int x = 0; x < l.width; ++x) alpha.alpha[std::size_t(y) * std::size_t(l.width) + std::size_t(x)] = image->channel(x, y, channel);
+  return alpha;
 }
 
 }  // namespace
@@ -39,7 +47,7 @@ SceneAlpha::SceneAlpha(const Scene& scene, const FlatScene& flat) : flat_(flat),
     alpha.lookup = material.alpha_texture;
     alpha.lookup.encoded = nullptr;  // only the wrap modes, the coordinate set and the transform are read
     if (!material.alpha_texture.empty() && has_texcoords(flat))
-      if (auto image = oiio_module().read_alpha(material.alpha_texture, material.alpha_from_grey)) {
+      if (auto image = read_alpha(material.alpha_texture, material.alpha_from_grey)) {
         alpha.width = image->width;
         alpha.height = image->height;
         alpha.texels = std::move(image->alpha);

@@ -83,8 +83,9 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   const int width = scene.settings.width;
   const PixelRegion region = checked_region(scene, options.region);
   const CameraFrame frame = make_camera_frame(scene.camera, width, scene.settings.height, scene.source);
-  const TextureSampler textures(scene);
+  const TextureSampler textures(scene, options.texture_cache_bytes);
   RenderResult result;
+  result.textures = textures.use();
   result.plan = plan_effects(scene, flat, options.ray_offset, options.effects, &textures);
   ShadingContext context{scene, flat, accel, result.plan, options.ray_offset, &textures, false};
   context.alpha = scene_alpha_of(accel);
@@ -290,7 +291,7 @@ std::vector<std::string> trace_pixel(const Scene& scene, const FlatScene& flat, 
   if (x < 0 || y < 0 || x >= width || y >= height)
     throw InputError(scene.source, "", fmt::format("pixel ({}, {}) is outside the {}x{} image", x, y, width, height));
   const CameraFrame frame = make_camera_frame(scene.camera, width, height, scene.source);
-  const TextureSampler textures(scene);
+  const TextureSampler textures(scene, options.texture_cache_bytes);
   const EffectsPlan plan = plan_effects(scene, flat, options.ray_offset, options.effects, &textures);
   std::vector<std::string> lines;
   ShadingContext context{scene, flat, accel, plan, options.ray_offset, &textures, false};

@@ -7,8 +7,11 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
 
 #include "io/oiio_module.h"
+#include "render/texture_cache.h"
+#include "rt/core/memory.h"
 
 namespace rt {
 
@@ -30,12 +33,15 @@ bool is_colour(TextureRole role) {
 
 struct TextureSampler::Impl {
   struct Lookup {
-    int slot = -1;    // in `files`; -1: none
-    Texture texture;  // its coordinate set and transform (Texture::lookup_uv), without the bytes
+    const DecodedTexture* decoded = nullptr;  // held in `decoded`; else
+    int slot = -1;                            // in `files`; both unset: none
+    Texture texture;  // its wraps, coordinate set and transform (Texture::lookup_uv), without the bytes
   };
-  std::unique_ptr<TextureFiles> files;  // null until a material has a texture
+  std::vector<std::shared_ptr<const DecodedTexture>> decoded;  // what `lookups` point into
+  std::unique_ptr<TextureFiles> files;  // OpenImageIO's, for other formats or over the budget; else null
   std::vector<std::array<Lookup, kTextureRoleCount>> lookups;  // per material and role
   fs::path temp_dir;                    // empty unless an embedded image needed a file
+  TextureUse use;
 
   ~Impl() {
     files.reset();  // closes the files before they are removed
@@ -56,10 +62,20 @@ struct TextureSampler::Impl {
     return written[bytes.get()] = path;
   }
 
+  // Opens `texture` in OpenImageIO's TextureSystem, as slot of `lookup`.
+  void open_in_oiio(const Texture& texture, Lookup& lookup, std::map<const std::string*, std::string>& written) {
+    std::error_code error;
+    if (!texture.encoded && !fs::is_regular_file(texture.path, error)) return;  // samples as absent
+    if (!files) files = oiio_module().new_texture_files(use.tiled ? use.budget_bytes : 0);
+    const std::string path = texture.encoded ? file_for(texture.encoded, written) : texture.path;
+    if (!path.empty()) lookup.slot = files->open(path, texture.wrap_s, texture.wrap_t);
+    if (lookup.slot >= 0) ++use.through_oiio;
+  }
+
   const Lookup* find(std::uint32_t material, TextureRole role) const {
     if (material >= lookups.size()) return nullptr;
     const Lookup& lookup = lookups[material][static_cast<std::size_t>(role)];
-    return lookup.slot >= 0 ? &lookup : nullptr;
+    return lookup.decoded || lookup.slot >= 0 ? &lookup : nullptr;
   }
 };
 
@@ -78,24 +94,45 @@ const Texture* texture_for(const Material& m, TextureRole role) {
   return nullptr;
 }
 
-TextureSampler::TextureSampler(const Scene& scene) : impl_(std::make_unique<Impl>()) {
-  impl_->lookups.resize(scene.materials.size());
-  std::map<const std::string*, std::string> written;
+TextureSampler::TextureSampler(const Scene& scene, std::uint64_t cache_bytes) : impl_(std::make_unique<Impl>()) {
+  Impl& impl = *impl_;
+  impl.lookups.resize(scene.materials.size());
+  impl.use.budget_bytes = cache_bytes ? cache_bytes : available_memory_bytes() / 2;
+  // PNG and JPEG textures are decoded by rt itself (rt/io/decode_image.h) when all of them fit in
+  // the budget; otherwise OpenImageIO's tiled cache, bounded by it, samples every texture.
+  std::set<const DecodedTexture*> distinct;
   for (std::size_t m = 0; m < scene.materials.size(); ++m)
     for (int r = 0; r < kTextureRoleCount; ++r) {
       const Texture* texture = texture_for(scene.materials[m], static_cast<TextureRole>(r));
       if (!texture || texture->empty()) continue;
-      if (!impl_->files) impl_->files = oiio_module().new_texture_files();
-      const std::string path = texture->encoded ? impl_->file_for(texture->encoded, written) : texture->path;
-      if (path.empty()) continue;
-      Impl::Lookup& lookup = impl_->lookups[m][static_cast<std::size_t>(r)];
-      lookup.slot = impl_->files->open(path, texture->wrap_s, texture->wrap_t);
+      Impl::Lookup& lookup = impl.lookups[m][static_cast<std::size_t>(r)];
       lookup.texture = *texture;
       lookup.texture.encoded = nullptr;
+      if (auto decoded = find_decoded_texture(*texture, impl.use.budget_bytes)) {
+        lookup.decoded = decoded.get();
+        if (distinct.insert(decoded.get()).second) impl.use.decoded_bytes += decoded->layout().decoded_bytes();
+        impl.decoded.push_back(std::move(decoded));
+      }
+    }
+  impl.use.decoded = int(distinct.size());
+  impl.use.tiled = impl.use.decoded_bytes > impl.use.budget_bytes;
+  if (impl.use.tiled) {
+    impl.decoded.clear();
+    impl.use.decoded = 0;
+  }
+  std::map<const std::string*, std::string> written;
+  for (std::size_t m = 0; m < scene.materials.size(); ++m)
+    for (int r = 0; r < kTextureRoleCount; ++r) {
+      Impl::Lookup& lookup = impl.lookups[m][static_cast<std::size_t>(r)];
+      if (lookup.texture.empty() || (lookup.decoded && !impl.use.tiled)) continue;
+      lookup.decoded = nullptr;
+      impl.open_in_oiio(*texture_for(scene.materials[m], static_cast<TextureRole>(r)), lookup, written);
     }
 }
 
 TextureSampler::~TextureSampler() = default;
+
+const TextureUse& TextureSampler::use() const { return impl_->use; }
 
 bool TextureSampler::has(std::uint32_t material, TextureRole role) const { return impl_->find(material, role) != nullptr; }
 
@@ -103,7 +140,13 @@ Vec3f TextureSampler::sample(std::uint32_t material, TextureRole role, const Tex
   const Impl::Lookup* lookup = impl_->find(material, role);
   if (!lookup) return Vec3f(1.0f);
   float rgb[3] = {1.0f, 1.0f, 1.0f};
-  if (!impl_->files->sample(lookup->slot, lookup->texture.lookup_uv(uv), rgb)) return Vec3f(1.0f);
+  const Vec2f at = lookup->texture.lookup_uv(uv);
+  if (lookup->decoded) {
+    const DecodedImage* image = lookup->decoded->image();
+    if (!image || !sample_bilinear(*image, lookup->texture.wrap_s, lookup->texture.wrap_t, at, rgb)) return Vec3f(1.0f);
+  } else if (!impl_->files->sample(lookup->slot, at, rgb)) {
+    return Vec3f(1.0f);
+  }
   if (!is_colour(role)) return {rgb[0], rgb[1], rgb[2]};
   return {srgb_to_linear(rgb[0]), srgb_to_linear(rgb[1]), srgb_to_linear(rgb[2])};
 }
@@ -114,7 +157,10 @@ bool texture_is_readable(const Texture& texture, std::string& reason) {
     reason = "no such file";
     return false;
   }
-  return oiio_module().texture_is_readable(texture, reason);
+  // A PNG or JPEG is judged by its header, read by rt's own decoder; other formats by OpenImageIO.
+  bool is_png_or_jpeg = false;
+  if (read_texture_layout(texture, is_png_or_jpeg, reason)) return true;
+  return !is_png_or_jpeg && oiio_module().texture_is_readable(texture, reason);
 }
 
 std::optional<Vec4f> texture_mean(const Texture& texture) { return oiio_module().texture_mean(texture); }

@@ -61,8 +61,8 @@ void write_image(const Image& image, const std::string& path, const ImageHeader&
 // file write_image(image, path) does. Throws InputError for .exr/.hdr or an unknown extension.
 void write_rgb8(int width, int height, const std::vector<std::uint8_t>& rgb8, const std::string& path);
 
-// Reads any OIIO-readable image as float RGB (extra channels dropped, grey expanded); 8-bit data
-// is mapped to c / 255 without colour conversion. When `header` is given it receives the data
+// Reads any OIIO-readable image as float RGB (extra channels dropped, grey expanded, colour not
+// multiplied by alpha); 8-bit data is mapped to c / 255 without colour conversion. When `header` is given it receives the data
 // window (set only if the file has one that differs from its display window), the display window
 // and the "rt:" string attributes. Throws InputError when unreadable.
 Image read_image(const std::string& path, ImageHeader* header = nullptr);

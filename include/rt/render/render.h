@@ -12,6 +12,7 @@
 #include "rt/accel/accel.h"
 #include "rt/core/image.h"
 #include "rt/render/region.h"
+#include "rt/render/texture.h"
 #include "rt/render/shade.h"
 
 namespace rt {
@@ -44,6 +45,8 @@ struct RenderOptions {
   // The pixels to render, in full-image coordinates; unset: the whole image. Each pixel is the
   // same as in a render of the whole image, bit for bit (--crop, --tile, rt merge).
   std::optional<PixelRegion> region;
+  // The texture cache's size in bytes (TextureSampler; --texture-cache); 0: half the available memory.
+  std::uint64_t texture_cache_bytes = 0;
 };
 
 struct RenderResult {
@@ -51,6 +54,7 @@ struct RenderResult {
   PixelRegion region;   // what was rendered, in full-image coordinates
   EffectsPlan plan;  // what the render skipped, decided by plan_effects before the first ray
   RayCounts rays;
+  TextureUse textures;  // how the textures were sampled
   double seconds = 0.0;  // wall-clock time of the render loop
   // Wall-clock time from entering render_image (texture set-up and the effects plan included) to
   // the first finished tile: when the first pixels could be shown. 0 when no tile finished.

@@ -1,5 +1,5 @@
 #pragma once
-// Texture lookups for shading, through OpenImageIO's TextureSystem.
+// Texture lookups for shading: PNG and JPEG decoded by rt, other formats through OpenImageIO.
 
 #include <cstdint>
 #include <memory>
@@ -34,16 +34,31 @@ const Texture* texture_for(const Material& m, TextureRole role);
 // bilinear on the full-resolution image with no derivatives and no MIP-mapping: a Whitted
 // renderer traces one ray per pixel, so there is no footprint to filter over. Each texture is
 // looked up at its own coordinate set and transform (Texture::lookup_uv).
+// How a TextureSampler samples its textures.
+struct TextureUse {
+  int decoded = 0;                 // distinct PNG and JPEG images rt decodes itself, each on its first lookup
+  int through_oiio = 0;            // lookups (material and role) sampled through OpenImageIO
+  std::uint64_t decoded_bytes = 0; // what the PNG and JPEG images take decoded
+  std::uint64_t budget_bytes = 0;  // the texture cache's size (--texture-cache)
+  bool tiled = false;  // decoded_bytes > budget_bytes: every texture goes through OpenImageIO's tiled cache, bounded by the budget
+};
+
 class TextureSampler {
  public:
   // Opens every material's textures (those the shader reads: emission only for emitters,
   // transmission only for glTF glass). Embedded (encoded) images are written to a private
   // temporary directory, removed again by the destructor. A texture that cannot be read samples
   // as if absent (loaders check readability and report it; see load_gltf.h).
-  explicit TextureSampler(const Scene& scene);
+  // PNG and JPEG textures are decoded by rt (rt/io/decode_image.h), once per process while they
+  // stay in the cache of `cache_bytes` (0: half the available memory); other formats, and every
+  // texture when the PNG and JPEG ones would not fit, are sampled through OpenImageIO's
+  // TextureSystem, whose tiled cache is then bounded by `cache_bytes`.
+  explicit TextureSampler(const Scene& scene, std::uint64_t cache_bytes = 0);
   ~TextureSampler();
   TextureSampler(const TextureSampler&) = delete;
   TextureSampler& operator=(const TextureSampler&) = delete;
+
+  const TextureUse& use() const;
 
   // True when material `material` has a texture for `role`.
   bool has(std::uint32_t material, TextureRole role) const;
@@ -69,8 +84,8 @@ class TextureSampler {
   std::unique_ptr<Impl> impl_;
 };
 
-// Whether OpenImageIO can open `texture` (a file, or the embedded bytes) as an image; on failure
-// `reason` says why.
+// Whether `texture` (a file, or the embedded bytes) opens as an image: a PNG or JPEG by its header
+// (rt's decoder), another format by OpenImageIO. On failure `reason` says why.
 bool texture_is_readable(const Texture& texture, std::string& reason);
 
 // Mean of the first four channels of `texture` over all its pixels, as stored in the file (no
