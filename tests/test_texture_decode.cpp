@@ -9,6 +9,7 @@
 
 #include <catch2/catch.hpp>
 #include <jpeglib.h>
+#include <nlohmann/json.hpp>
 #include <png.h>
 
 #include "rt/io/decode_image.h"
@@ -359,4 +360,43 @@ TEST_CASE("Bilinear lookups of decoded textures match OpenImageIO's TextureSyste
     }
   // OpenImageIO computes the texel position in single precision (st * width - 0.5f); rt in double.
   CHECK(worst < 2e-5f);
+}
+
+TEST_CASE("A texture cache smaller than the textures sends them through OpenImageIO tiles and says so", "[decode][texture][cli]") {
+  const TempDir dir;
+  write_test_png(dir.path() / "checker.png", {64, 48, PNG_COLOR_TYPE_RGB, 8, false});
+  rt_test::write_file(dir.path() / "quad.mtl", "newmtl textured\nKd 1 1 1\nmap_Kd checker.png\n");
+  rt_test::write_file(dir.path() / "quad.obj",
+                      "mtllib quad.mtl\nv -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+                      "usemtl textured\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n");
+  const std::string common = "render --width 48 --height 36 --eye 0 0 2.5 --target 0 0 0 quad.obj";
+  const rt_test::RtRun usual = rt_test::run_rt_in(dir, common + " -o usual.png --stats usual.json");
+  REQUIRE(usual.status == 0);
+  CHECK(usual.err.find("texture cache") == std::string::npos);
+  // 64 x 48 RGB texels decoded are 9216 bytes; 4K does not hold them.
+  const rt_test::RtRun bounded = rt_test::run_rt_in(dir, common + " -o bounded.png --stats bounded.json --texture-cache 4K");
+  REQUIRE(bounded.status == 0);
+  CHECK(bounded.err.find("rt: note: the PNG and JPEG textures take 9.0 KiB decoded, more than the 4.0 KiB texture cache") !=
+        std::string::npos);
+  const auto stats = [&](const char* name) { return nlohmann::json::parse(rt_test::read_file(dir.path() / name))["textures"]; };
+  CHECK(stats("usual.json")["decoded"] == 1);
+  CHECK(stats("usual.json")["tiled"] == false);
+  CHECK(stats("bounded.json")["tiled"] == true);
+  CHECK(stats("bounded.json")["through_openimageio"] == 1);
+  CHECK(stats("bounded.json")["cache_bytes"] == 4096);
+  // The same image, to the 8-bit rounding of lookups that agree to 2e-5.
+  const rt::Image a = rt::read_image((dir.path() / "usual.png").string());
+  const rt::Image b = rt::read_image((dir.path() / "bounded.png").string());
+  float worst = 0.0f, textured = 0.0f;
+  for (std::size_t i = 0; i < a.pixels.size(); ++i)
+    for (int c = 0; c < 3; ++c) {
+      worst = std::max(worst, std::abs(a.pixels[i][c] - b.pixels[i][c]));
+      textured = std::max(textured, a.pixels[i][c]);
+    }
+  CHECK(worst <= 1.0f / 255.0f);
+  CHECK(textured > 0.1f);  // the quad is in view and lit
+  // A malformed size is refused before anything is loaded.
+  const rt_test::RtRun bad = rt_test::run_rt_in(dir, common + " --texture-cache lots");
+  CHECK(bad.status == 2);
+  CHECK(bad.err.find("'lots' is not a size such as 512M or 2G") != std::string::npos);
 }

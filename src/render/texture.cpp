@@ -157,10 +157,10 @@ bool texture_is_readable(const Texture& texture, std::string& reason) {
     reason = "no such file";
     return false;
   }
-  // A PNG or JPEG is judged by its header, read by rt's own decoder; other formats by OpenImageIO.
-  bool is_png_or_jpeg = false;
-  if (read_texture_layout(texture, is_png_or_jpeg, reason)) return true;
-  return !is_png_or_jpeg && oiio_module().texture_is_readable(texture, reason);
+  // A PNG or JPEG by its header, read by rt's own decoder; what that refuses (another format, a
+  // CMYK or 12-bit JPEG, a damaged file) by OpenImageIO, which the sampler then uses for it.
+  if (read_texture_layout(texture, reason)) return true;
+  return oiio_module().texture_is_readable(texture, reason);
 }
 
 std::optional<Vec4f> texture_mean(const Texture& texture) { return oiio_module().texture_mean(texture); }

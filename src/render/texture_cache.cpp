@@ -149,20 +149,17 @@ bool sample_bilinear(const DecodedImage& image, TextureWrap wrap_s, TextureWrap 
   return true;
 }
 
-std::optional<ImageLayout> read_texture_layout(const Texture& texture, bool& is_png_or_jpeg, std::string& reason) {
+std::optional<ImageLayout> read_texture_layout(const Texture& texture, std::string& reason) {
   // The header of a JPEG with large EXIF or ICC blocks can run past the first 256 KiB: then the
   // whole file is read.
   constexpr std::size_t kHeaderBytes = 256 * 1024;
   std::optional<std::string> file;
   if (!texture.encoded) file = read_file_bytes(texture.path, kHeaderBytes);
   if (!texture.encoded && !file) {
-    is_png_or_jpeg = false;
     reason = "cannot be read";
     return std::nullopt;
   }
   std::string_view bytes = texture.encoded ? std::string_view(*texture.encoded) : std::string_view(*file);
-  is_png_or_jpeg = codec_of(bytes) != ImageCodec::other;
-  if (!is_png_or_jpeg) return std::nullopt;
   std::optional<ImageLayout> layout = read_image_layout(bytes, reason);
   if (!layout && file && file->size() == kHeaderBytes && (file = read_file_bytes(texture.path)))
     layout = read_image_layout(*file, reason);
@@ -180,9 +177,8 @@ std::shared_ptr<const DecodedTexture> find_decoded_texture(const Texture& textur
       return it->second.texture;
     }
   }
-  bool is_png_or_jpeg = false;
   std::string reason;
-  const std::optional<ImageLayout> layout = read_texture_layout(texture, is_png_or_jpeg, reason);
+  const std::optional<ImageLayout> layout = read_texture_layout(texture, reason);
   if (!layout) return nullptr;
   auto decoded = std::make_shared<const DecodedTexture>(texture, *layout);
   std::lock_guard lock(c.mutex);

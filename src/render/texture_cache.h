@@ -58,9 +58,8 @@ bool sample_bilinear(const DecodedImage& image, TextureWrap wrap_s, TextureWrap 
 // least recently requested first, while those held total more than `budget_bytes`.
 std::shared_ptr<const DecodedTexture> find_decoded_texture(const Texture& texture, std::uint64_t budget_bytes);
 
-// The header of `texture`'s image when it is a PNG or JPEG: its layout, or nullopt with the
-// decoder's reason. `is_png_or_jpeg` says whether it was one by signature (or, for a file that
-// cannot be opened, false).
-std::optional<ImageLayout> read_texture_layout(const Texture& texture, bool& is_png_or_jpeg, std::string& reason);
+// The layout of `texture`'s image from its header when it is a PNG or JPEG rt decodes; nullopt
+// with the decoder's reason otherwise.
+std::optional<ImageLayout> read_texture_layout(const Texture& texture, std::string& reason);
 
 }  // namespace rt
