@@ -7,7 +7,10 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <mutex>
 #include <set>
+
+#include <tbb/task_group.h>
 
 #include "io/oiio_module.h"
 #include "render/texture_cache.h"
@@ -40,10 +43,15 @@ struct TextureSampler::Impl {
   std::vector<std::shared_ptr<const DecodedTexture>> decoded;  // what `lookups` point into
   std::unique_ptr<TextureFiles> files;  // OpenImageIO's, for other formats or over the budget; else null
   std::vector<std::array<Lookup, kTextureRoleCount>> lookups;  // per material and role
+  // Per material: whether its textures' decoding has been started (prefetch).
+  std::unique_ptr<std::atomic<bool>[]> prefetched;
+  tbb::task_group decoding;
+  std::mutex decoding_mutex;
   fs::path temp_dir;                    // empty unless an embedded image needed a file
   TextureUse use;
 
   ~Impl() {
+    decoding.wait();
     files.reset();  // closes the files before they are removed
     std::error_code ignored;
     if (!temp_dir.empty()) fs::remove_all(temp_dir, ignored);
@@ -72,6 +80,19 @@ struct TextureSampler::Impl {
     if (lookup.slot >= 0) ++use.through_oiio;
   }
 
+  // On the first lookup of a texture of `material`, starts decoding the material's other pending
+  // textures on idle worker threads: the hit that needs one needs the others next, and decoding
+  // them one after the other on one thread would hold up the first tile (time to first pixel).
+  void prefetch(std::uint32_t material) {
+    if (prefetched[material].exchange(true)) return;
+    const std::lock_guard lock(decoding_mutex);  // run() from several render threads at once
+    for (const Lookup& lookup : lookups[material])
+      if (lookup.decoded && lookup.decoded->pending()) {
+        const DecodedTexture* texture = lookup.decoded;  // held by `decoded` until `decoding` is waited for
+        decoding.run([texture] { texture->image(); });
+      }
+  }
+
   const Lookup* find(std::uint32_t material, TextureRole role) const {
     if (material >= lookups.size()) return nullptr;
     const Lookup& lookup = lookups[material][static_cast<std::size_t>(role)];
@@ -86,7 +107,7 @@ const Texture* texture_for(const Material& m, TextureRole role) {
     case TextureRole::transmission: return m.is_dielectric() && m.transmission_mix ? &m.transmission_texture : nullptr;
     case TextureRole::metallic_roughness: return m.metallic_roughness ? &m.metallic_roughness->texture : nullptr;
     case TextureRole::normal: return &m.normal_texture;
-    case TextureRole::occlusion: return &m.occlusion_texture;
+    case TextureRole::occlusion: return m.ambient != Color(0.0f) ? &m.occlusion_texture : nullptr;  // it scales ambient
     case TextureRole::specular: return &m.specular_texture;
     case TextureRole::shininess: return &m.shininess_texture;
     case TextureRole::bump: return &m.bump_texture;
@@ -97,6 +118,7 @@ const Texture* texture_for(const Material& m, TextureRole role) {
 TextureSampler::TextureSampler(const Scene& scene, std::uint64_t cache_bytes) : impl_(std::make_unique<Impl>()) {
   Impl& impl = *impl_;
   impl.lookups.resize(scene.materials.size());
+  impl.prefetched = std::make_unique<std::atomic<bool>[]>(scene.materials.size());
   impl.use.budget_bytes = cache_bytes ? cache_bytes : available_memory_bytes() / 2;
   // PNG and JPEG textures are decoded by rt itself (rt/io/decode_image.h) when all of them fit in
   // the budget; otherwise OpenImageIO's tiled cache, bounded by it, samples every texture.
@@ -142,6 +164,7 @@ Vec3f TextureSampler::sample(std::uint32_t material, TextureRole role, const Tex
   float rgb[3] = {1.0f, 1.0f, 1.0f};
   const Vec2f at = lookup->texture.lookup_uv(uv);
   if (lookup->decoded) {
+    if (lookup->decoded->pending()) impl_->prefetch(material);
     const DecodedImage* image = lookup->decoded->image();
     if (!image || !sample_bilinear(*image, lookup->texture.wrap_s, lookup->texture.wrap_t, at, rgb)) return Vec3f(1.0f);
   } else if (!impl_->files->sample(lookup->slot, at, rgb)) {

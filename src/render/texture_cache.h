@@ -22,6 +22,9 @@ class DecodedTexture {
 
   const ImageLayout& layout() const { return layout_; }
 
+  // True until the first image() call has finished.
+  bool pending() const { return state_.load(std::memory_order_acquire) == kPending; }
+
   // The image, decoded on the first call; nullptr when it cannot be decoded (damaged after its
   // header), which callers sample as white, as they did under OpenImageIO.
   const DecodedImage* image() const {

@@ -8,6 +8,8 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
+#include <memory>
 #include <vector>
 
 namespace rt {
@@ -27,12 +29,43 @@ struct ImageLayout {
   }
 };
 
+// Memory for texels: at least `bytes`, from transparent huge pages when that large (a 2k RGBA
+// texture is 16 MB: 4096 page faults in 4 KiB pages, 8 in 2 MiB ones).
+void* allocate_texels(std::size_t bytes);
+void free_texels(void* texels, std::size_t bytes) noexcept;
+
+// A vector whose resize leaves new elements uninitialised (the decoder writes every texel, and
+// zeroing 16 MB first would cost a pass over memory per 2k texture), in allocate_texels memory.
+template <typename T>
+struct UninitialisedAllocator : std::allocator<T> {
+  using value_type = T;
+  UninitialisedAllocator() = default;
+  template <typename U>
+  UninitialisedAllocator(const UninitialisedAllocator<U>&) noexcept {}
+  template <typename U>
+  struct rebind {
+    using other = UninitialisedAllocator<U>;
+  };
+  T* allocate(std::size_t n) { return static_cast<T*>(allocate_texels(n * sizeof(T))); }
+  void deallocate(T* p, std::size_t n) noexcept { free_texels(p, n * sizeof(T)); }
+  template <typename U>
+  void construct(U* p) noexcept {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <typename U, typename... Args>
+  void construct(U* p, Args&&... args) {
+    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
+};
+template <typename T>
+using TexelVector = std::vector<T, UninitialisedAllocator<T>>;
+
 // A decoded image: rows from the top, texels row-major, in `texels8` (8-bit) or `texels16`
 // (16-bit, host byte order).
 struct DecodedImage {
   ImageLayout layout;
-  std::vector<std::uint8_t> texels8;
-  std::vector<std::uint16_t> texels16;
+  TexelVector<std::uint8_t> texels8;
+  TexelVector<std::uint16_t> texels16;
 
   // Channel `c` of texel (x, y) in [0, 1] (value / 255 or / 65535, as OpenImageIO converts).
   float channel(int x, int y, int c) const {
