@@ -348,10 +348,11 @@ TEST_CASE("intersect_coherent and occluded_coherent answer exactly as single ray
 
 TEST_CASE("Embree's compact layout gives the default layout's hits up to float rounding", "[accel]") {
   // embree_compact_from_triangles switches big scenes to RTC_SCENE_FLAG_COMPACT. Its BVH leaves
-  // index the shared vertex buffer where the default ones hold copies of the vertices, and on AVX2
-  // (AMD EPYC, Embree 3.13.5) the two kernels round differently: hits agree to a few ulps, and a
-  // ray at a tie may take either triangle. On the AVX-512 machines of earlier sessions they were
-  // identical (docs/robustness.md). Camera rays and incoherent rays over the default scene.
+  // index the shared vertex buffer where the default ones hold copies of the vertices, and with
+  // Embree 3.13.5's AVX2 kernels (an AMD EPYC without AVX-512) the two round differently: hits
+  // agree to a few ulps, and a ray at a tie may take either triangle. On the machine this test was
+  // written on they were identical (docs/robustness.md). Camera rays and incoherent rays over the
+  // default scene.
   const bool robust = GENERATE(true, false);
   INFO("robust " << robust);
   const rt::Scene scene = rt::make_default_scene();

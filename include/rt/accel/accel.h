@@ -94,7 +94,8 @@ struct AccelOptions {
   // RTC_SCENE_FLAG_COMPACT from this many triangles on: BVH leaves index the shared vertex buffer
   // instead of copying vertices. On a 10M-triangle mesh it cut peak memory by 40 B/triangle and the
   // build time by half; on the 202k-triangle dragon it traced ~10% slower. The hits are the same
-  // (tests/test_accel.cpp); docs/performance.md has the measurements.
+  // up to float rounding: bit-identical on some CPUs, up to 7 ulps in t (and a tie taken by the
+  // other triangle) with Embree's AVX2 kernels (tests/test_accel.cpp, docs/robustness.md).
   std::size_t embree_compact_from_triangles = 2'000'000;
   // A device to build in, shared by the accels of a batch (make_embree_device); null: the accel
   // creates its own.
