@@ -7,10 +7,10 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <mutex>
 #include <set>
 
-#include <tbb/task_group.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include "io/oiio_module.h"
 #include "render/texture_cache.h"
@@ -45,13 +45,10 @@ struct TextureSampler::Impl {
   std::vector<std::array<Lookup, kTextureRoleCount>> lookups;  // per material and role
   // Per material: whether its textures' decoding has been started (prefetch).
   std::unique_ptr<std::atomic<bool>[]> prefetched;
-  tbb::task_group decoding;
-  std::mutex decoding_mutex;
   fs::path temp_dir;                    // empty unless an embedded image needed a file
   TextureUse use;
 
   ~Impl() {
-    decoding.wait();
     files.reset();  // closes the files before they are removed
     std::error_code ignored;
     if (!temp_dir.empty()) fs::remove_all(temp_dir, ignored);
@@ -80,17 +77,19 @@ struct TextureSampler::Impl {
     if (lookup.slot >= 0) ++use.through_oiio;
   }
 
-  // On the first lookup of a texture of `material`, starts decoding the material's other pending
-  // textures on idle worker threads: the hit that needs one needs the others next, and decoding
-  // them one after the other on one thread would hold up the first tile (time to first pixel).
+  // On the first lookup of a texture of `material`, decodes all of the material's pending
+  // textures in parallel (the render's other threads join in) and returns when they are done:
+  // the hit that needs one needs the others next, and decoding them one after the other on one
+  // thread would hold up the first tile (time to first pixel). Isolated, so that this thread
+  // runs only these decodes while it waits, not another tile.
   void prefetch(std::uint32_t material) {
     if (prefetched[material].exchange(true)) return;
-    const std::lock_guard lock(decoding_mutex);  // run() from several render threads at once
+    std::vector<const DecodedTexture*> pending;
     for (const Lookup& lookup : lookups[material])
-      if (lookup.decoded && lookup.decoded->pending()) {
-        const DecodedTexture* texture = lookup.decoded;  // held by `decoded` until `decoding` is waited for
-        decoding.run([texture] { texture->image(); });
-      }
+      if (lookup.decoded && lookup.decoded->pending()) pending.push_back(lookup.decoded);
+    tbb::this_task_arena::isolate([&] {
+      tbb::parallel_for(std::size_t(0), pending.size(), [&](std::size_t i) { pending[i]->image(); });
+    });
   }
 
   const Lookup* find(std::uint32_t material, TextureRole role) const {
