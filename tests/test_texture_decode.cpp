@@ -398,5 +398,5 @@ TEST_CASE("A texture cache smaller than the textures sends them through OpenImag
   // A malformed size is refused before anything is loaded.
   const rt_test::RtRun bad = rt_test::run_rt_in(dir, common + " --texture-cache lots");
   CHECK(bad.status == 2);
-  CHECK(bad.err.find("'lots' is not a size such as 512M or 2G") != std::string::npos);
+  CHECK(bad.err.find("'lots' is not a size such as 512M or 8G") != std::string::npos);
 }

@@ -18,6 +18,21 @@ namespace rt {
 
 namespace {
 
+// An option taking a positive size such as 512M or 8G (parse_bytes) into `bytes`.
+CLI::Option* add_size_option(CLI::App* command, const std::string& name, std::uint64_t& bytes, const std::string& help) {
+  return command
+      ->add_option_function<std::string>(
+          name,
+          [name, &bytes](const std::string& text) {
+            const std::optional<std::uint64_t> parsed = parse_bytes(text);
+            if (!parsed || *parsed == 0)
+              throw CLI::ValidationError(name, fmt::format("'{}' is not a size such as 512M or 8G", text));
+            bytes = *parsed;
+          },
+          help)
+      ->type_name("SIZE");
+}
+
 // "K/N" with 1 <= K <= N: --tile's argument.
 std::string parse_tile(const std::string& text, RegionRequest& region) {
   int k = 0, n = 0;
@@ -124,17 +139,10 @@ int run_cli(int argc, char** argv) {
         ->check(whole_number_in(1, kMaxImageSide));
     command->add_option("--height", args.height, "Image height in pixels (alone: the width follows the scene's aspect ratio)")
         ->check(whole_number_in(1, kMaxImageSide));
-    command->add_option_function<std::string>(
-              "--texture-cache",
-              [&args](const std::string& text) {
-                const std::optional<std::uint64_t> bytes = parse_bytes(text);
-                if (!bytes || *bytes == 0)
-                  throw CLI::ValidationError("--texture-cache", fmt::format("'{}' is not a size such as 512M or 2G", text));
-                args.texture_cache = *bytes;
-              },
-              "Decoded textures kept in memory at most, e.g. 512M; scenes whose PNG and JPEG textures need more are "
-              "sampled through OpenImageIO's tiled cache of this size (slower); default: half the available memory")
-        ->type_name("SIZE");
+    add_size_option(command, "--texture-cache", args.texture_cache,
+                    "Decoded textures kept in memory at most, e.g. 512M; scenes whose PNG and JPEG textures need "
+                    "more are sampled through OpenImageIO's tiled cache of this size (slower); default: half the "
+                    "available memory");
     command->add_option("--max-depth", args.max_depth, "Reflection depth (0 = no reflections)")
         ->check(whole_number_in(0, kMaxReflectionDepth));
     command->add_option_function<std::string>(
@@ -191,17 +199,9 @@ int run_cli(int argc, char** argv) {
     command->add_option("--threads", args.threads, "Worker threads (0 = all cores)")
         ->check(whole_number_in(0, 1024))
         ->capture_default_str();
-    command->add_option_function<std::string>(
-              "--memory-limit",
-              [&args](const std::string& text) {
-                const std::optional<std::uint64_t> bytes = parse_bytes(text);
-                if (!bytes || *bytes == 0)
-                  throw CLI::ValidationError("--memory-limit", fmt::format("'{}' is not a size such as 512M or 8G", text));
-                args.memory_limit = *bytes;
-              },
-              "Refuse (with a clear error, before allocating) work that needs more memory than this, e.g. 8G; "
-              "default: what the machine has available")
-        ->type_name("SIZE");
+    add_size_option(command, "--memory-limit", args.memory_limit,
+                    "Refuse (with a clear error, before allocating) work that needs more memory than this, e.g. 8G; "
+                    "default: what the machine has available");
   };
   add_image_options(render, render_args);
   add_effects_options(render, render_args.effects);
