@@ -103,7 +103,6 @@ bool decode_png(std::string_view bytes, ImageLayout& layout, DecodedImage* image
   std::vector<png_bytep> rows;
   if (ok && image) {
     ok = allocate(layout, *image, error);
-    if (!ok) std::snprintf(source.error, sizeof source.error, "%s", error.c_str());
     if (ok) {
       rows.resize(std::size_t(layout.height));
       const std::size_t row_bytes = std::size_t(layout.width) * std::size_t(layout.channels) * std::size_t(layout.bits / 8);
@@ -113,7 +112,7 @@ bool decode_png(std::string_view bytes, ImageLayout& layout, DecodedImage* image
     }
   }
   png_destroy_read_struct(&png, &info, nullptr);
-  if (!ok) error = source.error[0] ? source.error : "not a readable PNG";
+  if (!ok && error.empty()) error = source.error[0] ? source.error : "not a readable PNG";
   return ok;
 }
 
@@ -170,14 +169,12 @@ bool decode_jpeg(std::string_view bytes, ImageLayout& layout, DecodedImage* imag
   jpeg_mem_src(&cinfo, reinterpret_cast<const unsigned char*>(bytes.data()), static_cast<unsigned long>(bytes.size()));
   bool ok = read_jpeg_header(cinfo, errors, layout);
   if (ok && image) {
-    ok = allocate(layout, *image, error);
-    if (!ok) std::snprintf(errors.message, sizeof errors.message, "%s", error.c_str());
-    if (ok) ok = read_jpeg_rows(cinfo, errors, image->texels8.data());
+    ok = allocate(layout, *image, error) && read_jpeg_rows(cinfo, errors, image->texels8.data());
     // A truncated scan is only a warning to libjpeg, which fills the rest with grey; so is it to
     // OpenImageIO, whose values the lookups match.
   }
   jpeg_destroy_decompress(&cinfo);
-  if (!ok) error = errors.message[0] ? errors.message : "not a readable JPEG";
+  if (!ok && error.empty()) error = errors.message[0] ? errors.message : "not a readable JPEG";
   return ok;
 }
 
@@ -191,11 +188,9 @@ bool decode(std::string_view bytes, ImageLayout& layout, DecodedImage* image, st
   return false;
 }
 
-}  // namespace
-
-namespace {
 constexpr std::size_t kHugePage = std::size_t(2) << 20;
-}
+
+}  // namespace
 
 void* allocate_texels(std::size_t bytes) {
   if (bytes < 2 * kHugePage) {

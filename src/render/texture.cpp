@@ -179,9 +179,10 @@ bool texture_is_readable(const Texture& texture, std::string& reason) {
     reason = "no such file";
     return false;
   }
-  // A PNG or JPEG by its header, read by rt's own decoder; what that refuses (another format, a
-  // CMYK or 12-bit JPEG, a damaged file) by OpenImageIO, which the sampler then uses for it.
-  if (read_texture_layout(texture, reason)) return true;
+  // A PNG or JPEG by its header, read by rt's own decoder into the process's texture cache, where
+  // the render's sampler finds it without reading the file again; what that refuses (another
+  // format, a CMYK or 12-bit JPEG, a damaged file) by OpenImageIO, which the sampler then uses.
+  if (find_decoded_texture(texture, available_memory_bytes() / 2)) return true;
   return oiio_module().texture_is_readable(texture, reason);
 }
 

@@ -81,6 +81,25 @@ Cache& cache() {
   return instance;
 }
 
+// The layout of `texture`'s image from its header when it is a PNG or JPEG rt decodes; nullopt
+// with the decoder's reason otherwise.
+std::optional<ImageLayout> read_texture_layout(const Texture& texture, std::string& reason) {
+  // The header of a JPEG with large EXIF or ICC blocks can run past the first 256 KiB: then the
+  // whole file is read.
+  constexpr std::size_t kHeaderBytes = 256 * 1024;
+  std::optional<std::string> file;
+  if (!texture.encoded) file = read_file_bytes(texture.path, kHeaderBytes);
+  if (!texture.encoded && !file) {
+    reason = "cannot be read";
+    return std::nullopt;
+  }
+  std::string_view bytes = texture.encoded ? std::string_view(*texture.encoded) : std::string_view(*file);
+  std::optional<ImageLayout> layout = read_image_layout(bytes, reason);
+  if (!layout && file && file->size() == kHeaderBytes && (file = read_file_bytes(texture.path)))
+    layout = read_image_layout(*file, reason);
+  return layout;
+}
+
 }  // namespace
 
 DecodedTexture::DecodedTexture(const Texture& texture, const ImageLayout& layout)
@@ -147,23 +166,6 @@ bool sample_bilinear(const DecodedImage& image, TextureWrap wrap_s, TextureWrap 
   else
     bilinear(image.texels16.data(), l, x0, x1, y0, y1, tx, ty, 1.0f / 65535.0f, rgb);
   return true;
-}
-
-std::optional<ImageLayout> read_texture_layout(const Texture& texture, std::string& reason) {
-  // The header of a JPEG with large EXIF or ICC blocks can run past the first 256 KiB: then the
-  // whole file is read.
-  constexpr std::size_t kHeaderBytes = 256 * 1024;
-  std::optional<std::string> file;
-  if (!texture.encoded) file = read_file_bytes(texture.path, kHeaderBytes);
-  if (!texture.encoded && !file) {
-    reason = "cannot be read";
-    return std::nullopt;
-  }
-  std::string_view bytes = texture.encoded ? std::string_view(*texture.encoded) : std::string_view(*file);
-  std::optional<ImageLayout> layout = read_image_layout(bytes, reason);
-  if (!layout && file && file->size() == kHeaderBytes && (file = read_file_bytes(texture.path)))
-    layout = read_image_layout(*file, reason);
-  return layout;
 }
 
 std::shared_ptr<const DecodedTexture> find_decoded_texture(const Texture& texture, std::uint64_t budget_bytes) {

@@ -58,11 +58,7 @@ bool sample_bilinear(const DecodedImage& image, TextureWrap wrap_s, TextureWrap 
 // The process's decoded texture for `texture`, shared with earlier callers when it names the same
 // bytes (the same file, unchanged since; or embedded bytes of the same hash); nullptr when it is
 // not a PNG or JPEG readable as such (OpenImageIO's concern). Drops textures no caller holds, the
-// least recently requested first, while those held total more than `budget_bytes`.
+// least recently requested first, while all it keeps total more than `budget_bytes`.
 std::shared_ptr<const DecodedTexture> find_decoded_texture(const Texture& texture, std::uint64_t budget_bytes);
-
-// The layout of `texture`'s image from its header when it is a PNG or JPEG rt decodes; nullopt
-// with the decoder's reason otherwise.
-std::optional<ImageLayout> read_texture_layout(const Texture& texture, std::string& reason);
 
 }  // namespace rt

@@ -30,10 +30,6 @@ inline constexpr int kTextureRoleCount = 9;
 // transmission only for glTF glass), else null; it may be empty.
 const Texture* texture_for(const Material& m, TextureRole role);
 
-// The textures of a scene's materials, ready to sample from many threads at once. Lookups are
-// bilinear on the full-resolution image with no derivatives and no MIP-mapping: a Whitted
-// renderer traces one ray per pixel, so there is no footprint to filter over. Each texture is
-// looked up at its own coordinate set and transform (Texture::lookup_uv).
 // How a TextureSampler samples its textures.
 struct TextureUse {
   int decoded = 0;                 // distinct PNG and JPEG images rt decodes itself, each on its first lookup
@@ -43,6 +39,10 @@ struct TextureUse {
   bool tiled = false;  // decoded_bytes > budget_bytes: every texture goes through OpenImageIO's tiled cache, bounded by the budget
 };
 
+// The textures of a scene's materials, ready to sample from many threads at once. Lookups are
+// bilinear on the full-resolution image with no derivatives and no MIP-mapping: a Whitted
+// renderer traces one ray per pixel, so there is no footprint to filter over. Each texture is
+// looked up at its own coordinate set and transform (Texture::lookup_uv).
 class TextureSampler {
  public:
   // Opens every material's textures (those the shader reads: emission only for emitters,
