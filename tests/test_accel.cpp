@@ -1,6 +1,6 @@
 // Both intersectors against intersections solved by hand.
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <tuple>
 

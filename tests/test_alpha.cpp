@@ -2,7 +2,7 @@
 // texture colour read apart from alpha. The cut-outs' texel exactness and the intersectors'
 // agreement with filters are in test_load_gltf.cpp (on a glTF MASK material).
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <string>
 
@@ -16,7 +16,7 @@
 #include "rt/render/texture.h"
 #include "test_util.h"
 
-using Catch::Matchers::Contains;
+using Catch::Matchers::ContainsSubstring;
 
 namespace {
 
@@ -89,9 +89,9 @@ TEST_CASE("alpha in the native format: keys, defaults and errors naming the JSON
     }
     return std::string();
   };
-  CHECK_THAT(error(R"({ "alpha": 1.5 })"), Contains("/materials/m/alpha: alpha 1.5 is outside [0, 1]"));
-  CHECK_THAT(error(R"({ "alpha_mode": "cutout" })"), Contains("/materials/m/alpha_mode: 'cutout' is not opaque, mask or blend"));
-  CHECK_THAT(error(R"({ "alpha_cutoff": -1 })"), Contains("/materials/m/alpha_cutoff"));
+  CHECK_THAT(error(R"({ "alpha": 1.5 })"), ContainsSubstring("/materials/m/alpha: alpha 1.5 is outside [0, 1]"));
+  CHECK_THAT(error(R"({ "alpha_mode": "cutout" })"), ContainsSubstring("/materials/m/alpha_mode: 'cutout' is not opaque, mask or blend"));
+  CHECK_THAT(error(R"({ "alpha_cutoff": -1 })"), ContainsSubstring("/materials/m/alpha_cutoff"));
 }
 
 TEST_CASE("MTL dissolve: d and Tr blend, map_d is a scalar alpha map, glass ignores d", "[alpha][obj]") {
@@ -117,7 +117,7 @@ d 0.5
   CHECK(material("d").alpha == 0.25f);
   CHECK(material("tr").alpha == Approx(0.25f));  // Tr is 1 - d
   CHECK(material("map").alpha_from_grey);
-  CHECK_THAT(material("map").alpha_texture.path, Contains("mask.png"));
+  CHECK_THAT(material("map").alpha_texture.path, ContainsSubstring("mask.png"));
   CHECK(material("opaque").alpha_mode == rt::AlphaMode::opaque);
   CHECK(material("glass").alpha_mode == rt::AlphaMode::opaque);
   CHECK(material("glass").is_dielectric());

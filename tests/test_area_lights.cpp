@@ -2,7 +2,7 @@
 // against closed-form irradiance (Lambert's polygon formula) and against a point light in the
 // limit of a small emitter, one-sided emission, exact pruning, and the loaders' emitters.
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <algorithm>
 #include <cmath>
@@ -327,7 +327,7 @@ TEST_CASE("collect_area_lights: one emitter per emissive material, planar quads,
   scene.nodes.push_back(sphere_node);
   scene.nodes[0].children.push_back(1);
   CHECK_THROWS_WITH(rt::collect_area_lights(scene, rt::flatten_scene(scene)),
-                    Catch::Contains("'lamp' emits light and is used by a sphere"));
+                    Catch::Matchers::ContainsSubstring("'lamp' emits light and is used by a sphere"));
 }
 
 TEST_CASE("OBJ: Ke makes an area light and replaces the headlight, negative Ke is an error naming the line") {
@@ -355,12 +355,12 @@ TEST_CASE("OBJ: Ke makes an area light and replaces the headlight, negative Ke i
   CHECK(glow.materials[1].emits_light);
   CHECK(glow.materials[1].emission_texture.empty());
   REQUIRE(glow_report.warnings.size() == 1);
-  CHECK_THAT(glow_report.warnings[0], Catch::Contains("map_Ke 'glow.png'") || Catch::Contains("glow.png"));
-  CHECK_THAT(glow_report.warnings[0], Catch::Contains("using Ke alone"));
+  CHECK_THAT(glow_report.warnings[0], Catch::Matchers::ContainsSubstring("map_Ke 'glow.png'") || Catch::Matchers::ContainsSubstring("glow.png"));
+  CHECK_THAT(glow_report.warnings[0], Catch::Matchers::ContainsSubstring("using Ke alone"));
 
   rt_test::write_file(dir.path() / "box.mtl", "newmtl white\nKd 0.8 0.8 0.8\nnewmtl lamp\nKe 5 -4 3\n");
   CHECK_THROWS_WITH(rt::load_scene((dir.path() / "box.obj").string(), {}, &report),
-                    Catch::Contains("box.mtl:4:") && Catch::Contains("'Ke': '-4' is negative"));
+                    Catch::Matchers::ContainsSubstring("box.mtl:4:") && Catch::Matchers::ContainsSubstring("'Ke': '-4' is negative"));
 }
 
 TEST_CASE("native format: the emitter key makes an area light, a non-boolean is an error naming the key") {
@@ -384,7 +384,7 @@ TEST_CASE("native format: the emitter key makes an area light, a non-boolean is 
   CHECK(scene.materials[1].emits_light);
   CHECK(rt::collect_area_lights(scene, rt::flatten_scene(scene)).emitters.size() == 1);
   CHECK_FALSE(rt::load_scene(with("false")).materials[1].emits_light);
-  CHECK_THROWS_WITH(rt::load_scene(with("1")), Catch::Contains("/materials/lamp/emitter: expected true or false"));
+  CHECK_THROWS_WITH(rt::load_scene(with("1")), Catch::Matchers::ContainsSubstring("/materials/lamp/emitter: expected true or false"));
 }
 
 TEST_CASE("a lamp of thousands of triangles is sampled by power: a tessellated sphere lights like the sphere") {
@@ -414,7 +414,7 @@ TEST_CASE("a lamp of thousands of triangles is sampled by power: a tessellated s
   // Its emitter list is sized before it is allocated.
   const rt::FlatScene flat = rt::flatten_scene(scene);
   rt::set_memory_limit(64 * 1024);
-  CHECK_THROWS_WITH(rt::collect_area_lights(scene, flat), Catch::Contains("emissive triangles' area lights"));
+  CHECK_THROWS_WITH(rt::collect_area_lights(scene, flat), Catch::Matchers::ContainsSubstring("emissive triangles' area lights"));
   rt::set_memory_limit(0);
 }
 

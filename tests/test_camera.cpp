@@ -1,6 +1,6 @@
 // Primary rays against the seed's RayThruPixel formulas, evaluated independently here.
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <cmath>
 #include <limits>
@@ -159,7 +159,7 @@ TEST_CASE("make_camera_frame rejects unusable cameras and sizes", "[camera]") {
       rt::make_camera_frame(camera, width, height, "cam.json");
       FAIL("no exception thrown");
     } catch (const rt::InputError& error) {
-      CHECK_THAT(error.what(), Catch::Contains("cam.json"));
+      CHECK_THAT(error.what(), Catch::Matchers::ContainsSubstring("cam.json"));
     }
   };
 

@@ -1,6 +1,6 @@
 // The `rt` executable, run as a user would: exit codes, files written, messages on stderr.
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <sys/wait.h>
 
@@ -128,7 +128,7 @@ TEST_CASE("rt render --explain prints the plan and the budget, --no-prune traces
   REQUIRE(pruned.status == 0);
   for (const char* text : {"effects plan", "light 0", "reflections on", "ray budget", "camera", "shadow light 1",
                            "reflection depth 1", "skipped black_reflection"})
-    CHECK_THAT(pruned.out, Catch::Contains(text));
+    CHECK_THAT(pruned.out, Catch::Matchers::ContainsSubstring(text));
   const Run full = run_rt(dir, "render --quiet --no-prune --width 80 --height 60 -o full.png --stats full.json");
   REQUIRE(full.status == 0);
   CHECK(read_file(dir.path() / "pruned.png") == read_file(dir.path() / "full.png"));
@@ -146,7 +146,7 @@ TEST_CASE("rt render --explain prints the plan and the budget, --no-prune traces
 
   const Run bad = run_rt(dir, "render --quiet --min-throughput 2 -o never.png");
   CHECK(bad.status == 2);
-  CHECK_THAT(bad.err, Catch::Contains("--min-throughput"));
+  CHECK_THAT(bad.err, Catch::Matchers::ContainsSubstring("--min-throughput"));
   CHECK_FALSE(fs::exists(dir.path() / "never.png"));
 }
 
@@ -158,8 +158,8 @@ TEST_CASE("rt info describes a scene", "[cli]") {
   CHECK(line_count(builtin.out) > 3);
   const Run file = run_rt(dir, "info " + quoted(std::string(RT_SOURCE_DIR) + "/scenes/default.json"));
   CHECK(file.status == 0);
-  CHECK_THAT(file.out, Catch::Contains("default.json"));
-  CHECK_THAT(file.out, Catch::Contains("effects") && Catch::Contains("reflections on"));
+  CHECK_THAT(file.out, Catch::Matchers::ContainsSubstring("default.json"));
+  CHECK_THAT(file.out, Catch::Matchers::ContainsSubstring("effects") && Catch::Matchers::ContainsSubstring("reflections on"));
   CHECK(dir.entries().empty());
 }
 
@@ -204,8 +204,8 @@ TEST_CASE("rt render rejects bad input with exit 1 and one line naming the file"
       CHECK(run.status == 1);
       CHECK(line_count(run.err) == 1);
       CHECK(run.err.back() == '\n');
-      CHECK_THAT(run.err, Catch::Contains("bad.json"));
-      for (const std::string& part : c.expected) CHECK_THAT(run.err, Catch::Contains(part));
+      CHECK_THAT(run.err, Catch::Matchers::ContainsSubstring("bad.json"));
+      for (const std::string& part : c.expected) CHECK_THAT(run.err, Catch::Matchers::ContainsSubstring(part));
       CHECK(dir.entries() == std::vector<std::string>{"bad.json"});  // no bad.png
     }
   }
@@ -215,7 +215,7 @@ TEST_CASE("rt render rejects bad input with exit 1 and one line naming the file"
     INFO("stderr: " << run.err);
     CHECK(run.status == 1);
     CHECK(line_count(run.err) == 1);
-    CHECK_THAT(run.err, Catch::Contains("nothere.json"));
+    CHECK_THAT(run.err, Catch::Matchers::ContainsSubstring("nothere.json"));
     CHECK(dir.entries().empty());
   }
 }
@@ -227,7 +227,7 @@ TEST_CASE("rt render with an unwritable --stats path writes no image", "[cli]") 
   INFO("stderr: " << run.err);
   CHECK(run.status == 1);
   CHECK(line_count(run.err) == 1);
-  CHECK_THAT(run.err, Catch::Contains("missing/stats.json"));
+  CHECK_THAT(run.err, Catch::Matchers::ContainsSubstring("missing/stats.json"));
   CHECK(dir.entries().empty());
 }
 

@@ -2,7 +2,7 @@
 // one image side breaking the aspect ratio, bad flag values, typos, misleading notes, output
 // formats. Each case runs the real `rt` executable.
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <algorithm>
 #include <filesystem>
@@ -49,7 +49,7 @@ void check_usage_error(const RtRun& run, const std::string& message) {
   INFO("stderr: " << run.err);
   CHECK(run.status == 2);
   CHECK(line_count(run.err) == 1);
-  CHECK_THAT(run.err, Catch::StartsWith("rt: error: ") && Catch::Contains(message));
+  CHECK_THAT(run.err, Catch::Matchers::StartsWith("rt: error: ") && Catch::Matchers::ContainsSubstring(message));
 }
 
 // The first bytes of a file.
@@ -74,7 +74,7 @@ TEST_CASE("cli: a batch whose scenes would write the same file is refused before
       INFO("stderr: " << run.err);
       CHECK(run.status == 2);
       CHECK(line_count(run.err) == 1);
-      CHECK_THAT(run.err, Catch::Contains("would both write"));
+      CHECK_THAT(run.err, Catch::Matchers::ContainsSubstring("would both write"));
       CHECK_FALSE(fs::exists(dir / "scene.png"));
       CHECK_FALSE(fs::exists(dir / "three.png"));
       CHECK_FALSE(fs::exists(dir / "same.png"));
@@ -114,8 +114,8 @@ TEST_CASE("cli: --width or --height alone keeps the scene's aspect ratio, both a
   // A side that would exceed the largest image is a usage error naming the flag to add.
   const RtRun tall = run_rt(dir, "render -q scene.json --height 65536");
   CHECK(tall.status == 2);
-  CHECK_THAT(tall.err, Catch::Contains("--height 65536 at the scene's aspect ratio makes the width 87381 pixels") &&
-                           Catch::Contains("give --width too"));
+  CHECK_THAT(tall.err, Catch::Matchers::ContainsSubstring("--height 65536 at the scene's aspect ratio makes the width 87381 pixels") &&
+                           Catch::Matchers::ContainsSubstring("give --width too"));
 }
 
 TEST_CASE("cli: every bad flag value is a usage error (status 2) naming the flag, and writes nothing", "[cli]") {
@@ -160,7 +160,7 @@ TEST_CASE("cli: every bad flag value is a usage error (status 2) naming the flag
     }
   }
   // Only the flag given is blamed.
-  CHECK_THAT(run_rt(dir, "render -q scene.json --camera 0").err, !Catch::Contains("--gltf-scene"));
+  CHECK_THAT(run_rt(dir, "render -q scene.json --camera 0").err, !Catch::Matchers::ContainsSubstring("--gltf-scene"));
 }
 
 TEST_CASE("cli: a mistyped command or flag gets the nearest name suggested", "[cli]") {
@@ -199,17 +199,17 @@ TEST_CASE("cli: notes say what was made up truthfully, and a directory is not an
   const RtRun gltf = run_rt(dir, "render bare.gltf --width 16");
   INFO("stderr: " << gltf.err);
   REQUIRE(gltf.status == 0);
-  CHECK_THAT(gltf.err, Catch::Contains("framed its bounding box looking along (-0.42, -0.34, -0.84)"));
+  CHECK_THAT(gltf.err, Catch::Matchers::ContainsSubstring("framed its bounding box looking along (-0.42, -0.34, -0.84)"));
   const RtRun obj = run_rt(dir, "render tri.obj --width 16");
   REQUIRE(obj.status == 0);
-  CHECK_THAT(obj.err, Catch::Contains("framed its bounding box looking along -z"));
+  CHECK_THAT(obj.err, Catch::Matchers::ContainsSubstring("framed its bounding box looking along -z"));
 
   fs::create_directories(dir / "models");
   const RtRun directory = run_rt(dir, "render models");
   CHECK(directory.status == 1);
   CHECK(line_count(directory.err) == 1);
-  CHECK_THAT(directory.err, Catch::Contains("models: is a directory, not a scene file"));
-  CHECK_THAT(directory.err, !Catch::Contains("unsupported scene format"));
+  CHECK_THAT(directory.err, Catch::Matchers::ContainsSubstring("models: is a directory, not a scene file"));
+  CHECK_THAT(directory.err, !Catch::Matchers::ContainsSubstring("unsupported scene format"));
 }
 
 TEST_CASE("cli: rt info -q is silent on stderr, and counts are singular when one", "[cli]") {
@@ -217,17 +217,17 @@ TEST_CASE("cli: rt info -q is silent on stderr, and counts are singular when one
   write_file(dir / "tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
   const RtRun noisy = run_rt(dir, "info tri.obj");
   REQUIRE(noisy.status == 0);
-  CHECK_THAT(noisy.err, Catch::Contains("note:"));
+  CHECK_THAT(noisy.err, Catch::Matchers::ContainsSubstring("note:"));
   const RtRun quiet = run_rt(dir, "info -q tri.obj");
   REQUIRE(quiet.status == 0);
   CHECK(quiet.err.empty());
   CHECK(quiet.out == noisy.out);
-  CHECK_THAT(quiet.out, Catch::Contains("1 triangle, 3 vertices, 0 degenerate triangles dropped, 0 spheres"));
+  CHECK_THAT(quiet.out, Catch::Matchers::ContainsSubstring("1 triangle, 3 vertices, 0 degenerate triangles dropped, 0 spheres"));
 
   write_file(dir / "scene.json", small_json_scene());
   const RtRun render = run_rt(dir, "render scene.json --threads 1");
   REQUIRE(render.status == 0);
-  CHECK_THAT(render.out, Catch::Contains("0 triangles, 1 sphere, 1 light,") && Catch::Contains("(embree, 1 thread)"));
+  CHECK_THAT(render.out, Catch::Matchers::ContainsSubstring("0 triangles, 1 sphere, 1 light,") && Catch::Matchers::ContainsSubstring("(embree, 1 thread)"));
 }
 
 TEST_CASE("cli: outputs in any case of extension, lossy formats noted, formats listed", "[cli]") {
@@ -239,13 +239,13 @@ TEST_CASE("cli: outputs in any case of extension, lossy formats noted, formats l
   INFO("stderr: " << gif.err);
   REQUIRE(gif.status == 0);
   CHECK(magic(dir / "out.gif", 3) == "GIF");
-  CHECK_THAT(gif.err, Catch::Contains("out.gif: GIF keeps at most 256 colours"));
+  CHECK_THAT(gif.err, Catch::Matchers::ContainsSubstring("out.gif: GIF keeps at most 256 colours"));
   const RtRun jpg = run_rt(dir, "render scene.json -o out.JPG");
   REQUIRE(jpg.status == 0);
   CHECK(magic(dir / "out.JPG", 2) == "\xFF\xD8");
-  CHECK_THAT(jpg.err, Catch::Contains("jpg is compressed lossily"));
+  CHECK_THAT(jpg.err, Catch::Matchers::ContainsSubstring("jpg is compressed lossily"));
   const RtRun png = run_rt(dir, "render scene.json -o out.png");
   CHECK(png.err.empty());
   CHECK(run_rt(dir, "render -q scene.json -o quiet.webp").err.empty());
-  CHECK_THAT(run_rt(dir, "render --help").out, Catch::Contains("png, ppm (written by rt), exr, hdr"));
+  CHECK_THAT(run_rt(dir, "render --help").out, Catch::Matchers::ContainsSubstring("png, ppm (written by rt), exr, hdr"));
 }

@@ -27,7 +27,7 @@
 // occur a few times per million here and are a property of float32, not of either backend's
 // correctness. Everything else must agree.
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <algorithm>
 #include <cmath>

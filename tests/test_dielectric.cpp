@@ -3,7 +3,7 @@
 // that R + T = 1 is a real test), Brewster's angle, total internal reflection at the critical angle
 // and Beer–Lambert absorption.
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <cmath>
 #include <optional>

@@ -3,7 +3,7 @@
 // (no lights, no specular, a light at the eye, a convex scene), and the opt-in approximations stay
 // within their documented error bounds.
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <algorithm>
 #include <cmath>
@@ -13,6 +13,8 @@
 #include <limits>
 #include <numeric>
 #include <optional>
+#include <set>
+#include <string>
 
 #include <fmt/format.h>
 #include <glm/gtc/matrix_transform.hpp>
@@ -186,6 +188,15 @@ TEST_CASE("pruning never changes the image: glTF and OBJ models at 160 pixels wi
   std::cout << "\n" << kTableHeader << "\n";
   for (const fs::path& file : files)
     std::cout << check_pruning_is_exact(at_size(rt::load_scene(file.string()), 160), file.filename().string()) << "\n";
+}
+
+TEST_CASE("every skip rule has a name and a slot in the ray budget", "[effects]") {
+  std::set<std::string> names;
+  for (int r = 0; r < rt::kSkipRuleCount; ++r) names.insert(rt::to_string(static_cast<SkipRule>(r)));
+  CHECK(names.size() == std::size_t(rt::kSkipRuleCount));
+  CHECK(names.count("?") == 0);
+  // No rule past the count: a rule appended without a slot writes past RayCounts::skipped.
+  CHECK(rt::to_string(static_cast<SkipRule>(rt::kSkipRuleCount)) == "?");
 }
 
 TEST_CASE("the plan's predictions hold in the ray counts", "[effects]") {

@@ -2,7 +2,7 @@
 // tile_region's cut, regions that are bit-identical to the whole render, rt merge's checks,
 // batches on one Embree device, and the scene fingerprint that ties the parts together.
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <algorithm>
 #include <cmath>
@@ -96,7 +96,7 @@ TEST_CASE("a region's pixels equal the whole render's, bit for bit, whatever the
   }
   rt::RenderOptions outside;
   outside.region = rt::PixelRegion{60, 40, 68, 45};
-  CHECK_THROWS_WITH(render(scene, outside), Catch::Contains("the region 60 40 68 45 (x0 y0 x1 y1) is empty or outside the 67x45 image"));
+  CHECK_THROWS_WITH(render(scene, outside), Catch::Matchers::ContainsSubstring("the region 60 40 68 45 (x0 y0 x1 y1) is empty or outside the 67x45 image"));
 }
 
 TEST_CASE("rt render --tile K/N then rt merge gives the whole render's file byte for byte", "[farm][cli]") {
@@ -116,7 +116,7 @@ TEST_CASE("rt render --tile K/N then rt merge gives the whole render's file byte
   const rt_test::RtRun merged = rt_test::run_rt_in(dir, "merge" + tiles + " -o merged.png");
   INFO(merged.err);
   REQUIRE(merged.status == 0);
-  CHECK_THAT(merged.out, Catch::Contains("merged.png: 61x37 from 5 region file(s)"));
+  CHECK_THAT(merged.out, Catch::Matchers::ContainsSubstring("merged.png: 61x37 from 5 region file(s)"));
   CHECK(rt_test::read_file(dir / "merged.png") == rt_test::read_file(dir / "whole.png"));
   // EXR output: the same float pixels (the files differ in their DateTime attribute).
   REQUIRE(rt_test::run_rt_in(dir, "merge -q" + tiles + " -o merged.exr").status == 0);
@@ -132,9 +132,9 @@ TEST_CASE("rt render --tile K/N then rt merge gives the whole render's file byte
   CHECK(header.full_height == 37);
   std::vector<std::string> names;
   for (const auto& [name, value] : header.attributes) names.push_back(name + "=" + value);
-  CHECK_THAT(fmt::format("{}", fmt::join(names, " ")), Catch::Contains("rt:part=tile 2/5") &&
-                                                           Catch::Contains("rt:settings=spp=3 accel=embree") &&
-                                                           Catch::Contains("rt:scene="));
+  CHECK_THAT(fmt::format("{}", fmt::join(names, " ")), Catch::Matchers::ContainsSubstring("rt:part=tile 2/5") &&
+                                                           Catch::Matchers::ContainsSubstring("rt:settings=spp=3 accel=embree") &&
+                                                           Catch::Matchers::ContainsSubstring("rt:scene="));
 }
 
 TEST_CASE("rt render --crop writes the region, in place for .exr and alone for .png", "[farm][cli]") {
@@ -157,19 +157,19 @@ TEST_CASE("rt render --crop writes the region, in place for .exr and alone for .
   // Mistakes: outside the image; a tile written as PNG; K outside 1..N; more tiles than rows.
   const rt_test::RtRun outside = rt_test::run_rt_in(dir, "render -q --width 50 --height 40 --crop 0 0 51 40");
   CHECK(outside.status == 2);
-  CHECK_THAT(outside.err, Catch::Contains("--crop 0 0 51 40 reaches outside the 50x40 image (X1 51 > width 50)"));
+  CHECK_THAT(outside.err, Catch::Matchers::ContainsSubstring("--crop 0 0 51 40 reaches outside the 50x40 image (X1 51 > width 50)"));
   const rt_test::RtRun png_tile = rt_test::run_rt_in(dir, "render -q --tile 1/2 -o tile.png");
   CHECK(png_tile.status == 2);
-  CHECK_THAT(png_tile.err, Catch::Contains("--tile writes an OpenEXR region file for rt merge; 'tile.png' is not .exr"));
+  CHECK_THAT(png_tile.err, Catch::Matchers::ContainsSubstring("--tile writes an OpenEXR region file for rt merge; 'tile.png' is not .exr"));
   for (const char* bad : {"0/4", "5/4", "2", "1/0", "a/b", "1/2x"}) {
     const rt_test::RtRun run = rt_test::run_rt_in(dir, std::string("render -q --tile ") + bad);
     INFO(bad << ": " << run.err);
     CHECK(run.status == 2);
-    CHECK_THAT(run.err, Catch::Contains("expected K/N with 1 <= K <= N"));
+    CHECK_THAT(run.err, Catch::Matchers::ContainsSubstring("expected K/N with 1 <= K <= N"));
   }
   const rt_test::RtRun too_many = rt_test::run_rt_in(dir, "render -q --height 40 --tile 1/41");
   CHECK(too_many.status == 2);
-  CHECK_THAT(too_many.err, Catch::Contains("--tile 1/41: the 40-row image cannot be cut into 41 tiles"));
+  CHECK_THAT(too_many.err, Catch::Matchers::ContainsSubstring("--tile 1/41: the 40-row image cannot be cut into 41 tiles"));
   CHECK_FALSE(fs::exists(dir / "tile.png"));
 }
 
@@ -199,7 +199,7 @@ TEST_CASE("rt merge refuses missing, overlapping, foreign and mismatched parts, 
     const rt_test::RtRun run = rt_test::run_rt_in(dir, "merge" + files + " -o out.png");
     INFO("merge" << files << "\n" << run.err);
     CHECK(run.status == 1);
-    CHECK_THAT(run.err, Catch::StartsWith("rt: error: ") && Catch::Contains(message));
+    CHECK_THAT(run.err, Catch::Matchers::StartsWith("rt: error: ") && Catch::Matchers::ContainsSubstring(message));
     CHECK_FALSE(fs::exists(dir / "out.png"));
   }
   CHECK(rt_test::run_rt_in(dir, "merge" + t1 + t2 + t3 + " -o out.png -q").status == 0);
@@ -213,9 +213,9 @@ TEST_CASE("rt render A B C: a batch on one Embree device, --outdir, --skip-exist
   const rt_test::RtRun batch = rt_test::run_rt_in(dir, "render --width 32 --height 24 --outdir out" + scenes);
   INFO(batch.err);
   CHECK(batch.status == 1);  // one scene failed, the others were rendered
-  CHECK_THAT(batch.err, Catch::Contains("rt: error: broken.json:") &&
-                            Catch::Contains("rt: batch of 3 scenes in") &&
-                            Catch::Contains(": 2 rendered, 0 skipped, 1 failed: broken.json"));
+  CHECK_THAT(batch.err, Catch::Matchers::ContainsSubstring("rt: error: broken.json:") &&
+                            Catch::Matchers::ContainsSubstring("rt: batch of 3 scenes in") &&
+                            Catch::Matchers::ContainsSubstring(": 2 rendered, 0 skipped, 1 failed: broken.json"));
   rt_test::TempDir out_check;
   const std::vector<std::string> expected{"default.png", "transforms.png"};
   std::vector<std::string> written;
@@ -232,19 +232,19 @@ TEST_CASE("rt render A B C: a batch on one Embree device, --outdir, --skip-exist
   const rt_test::RtRun resumed = rt_test::run_rt_in(dir, "render --width 32 --height 24 --outdir out --skip-existing" + scenes);
   INFO(resumed.err);
   CHECK(resumed.status == 0);
-  CHECK_THAT(resumed.err, Catch::Contains("out/default.png exists, skipped (--skip-existing)") &&
-                              Catch::Contains("1 rendered, 2 skipped, 0 failed"));
+  CHECK_THAT(resumed.err, Catch::Matchers::ContainsSubstring("out/default.png exists, skipped (--skip-existing)") &&
+                              Catch::Matchers::ContainsSubstring("1 rendered, 2 skipped, 0 failed"));
   CHECK(fs::last_write_time(dir.path() / "out/default.png") == before);
   CHECK(fs::exists(dir.path() / "out/broken.png"));
 
   // Mistakes found before anything renders.
   const rt_test::RtRun one_output = rt_test::run_rt_in(dir, "render -o x.png" + scenes);
   CHECK(one_output.status == 2);
-  CHECK_THAT(one_output.err, Catch::Contains("-o names one output file; with several scenes use --outdir DIR"));
+  CHECK_THAT(one_output.err, Catch::Matchers::ContainsSubstring("-o names one output file; with several scenes use --outdir DIR"));
   const rt_test::RtRun same_name =
       rt_test::run_rt_in(dir, "render --outdir same '" + scene_dir() + "/default.json' default.json");
   CHECK(same_name.status == 2);
-  CHECK_THAT(same_name.err, Catch::Contains("would both write same/default.png"));
+  CHECK_THAT(same_name.err, Catch::Matchers::ContainsSubstring("would both write same/default.png"));
   CHECK_FALSE(fs::exists(dir / "same/default.png"));
 }
 

@@ -1,6 +1,6 @@
 // flatten_scene: world-space positions and normals against transforms written out by hand.
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <cmath>
 #include <functional>

@@ -1,7 +1,7 @@
 // The CSE167x / CS184.1x ".test" loader: the scene graph each command builds, every kind of bad
 // input, and the shared course corpus rendered against the official grader images.
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <algorithm>
 #include <chrono>
@@ -403,8 +403,8 @@ TEST_CASE("test scenes: each kind of bad input is one error naming the file and 
   for (const Case& c : cases) {
     INFO(c.what << ":\n" << c.text);
     const std::string message = error_of(c.text);
-    CHECK_THAT(message, Catch::StartsWith(fmt::format("bad.test:{}: ", c.line)));
-    CHECK_THAT(message, Catch::Contains(c.reason));
+    CHECK_THAT(message, Catch::Matchers::StartsWith(fmt::format("bad.test:{}: ", c.line)));
+    CHECK_THAT(message, Catch::Matchers::ContainsSubstring(c.reason));
     CHECK(message.find('\n') == std::string::npos);  // one line
   }
 }
@@ -421,9 +421,9 @@ TEST_CASE("test scenes: load_scene dispatches .test files, any case of the exten
   }
   rt_test::write_file(dir / "broken.test", std::string(kHeader) + "tri 0 1 2\n");
   CHECK_THROWS_WITH(rt::load_scene(dir / "broken.test"),
-                    Catch::StartsWith(dir / "broken.test:3: ") && Catch::Contains("'tri' before 'maxverts'"));
-  CHECK_THROWS_WITH(rt::load_scene(dir / "missing.test"), Catch::Contains("no such file"));
-  CHECK_THROWS_WITH(rt::load_test_scene(dir.path().string()), Catch::Contains("not a regular file"));
+                    Catch::Matchers::StartsWith(dir / "broken.test:3: ") && Catch::Matchers::ContainsSubstring("'tri' before 'maxverts'"));
+  CHECK_THROWS_WITH(rt::load_scene(dir / "missing.test"), Catch::Matchers::ContainsSubstring("no such file"));
+  CHECK_THROWS_WITH(rt::load_test_scene(dir.path().string()), Catch::Matchers::ContainsSubstring("not a regular file"));
 }
 
 TEST_CASE("test scenes: ambient is added once per object, whatever the lights and shadows", "[io][cse167x]") {

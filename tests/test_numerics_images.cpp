@@ -11,7 +11,7 @@
 //
 // Regenerate the table with build/release/tests/rt_tests "[numerics]~[slow]".
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <cmath>
 #include <cstdint>

@@ -11,7 +11,7 @@
 //
 // Regenerate the tables with  build/release/tests/rt_tests "[spheres]"
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <cmath>
 #include <iostream>

@@ -10,7 +10,7 @@
 //
 // Regenerate the printed tables with build/release/tests/rt_tests "[numerics]~[slow]".
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <cmath>
 #include <cstdint>

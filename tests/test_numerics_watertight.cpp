@@ -18,7 +18,7 @@
 //   build/release/tests/rt_tests "[numerics]~[slow]"    (default suite)
 //   build/release/tests/rt_tests "[numerics][slow]"     (long runs)
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <cmath>
 #include <cstdint>

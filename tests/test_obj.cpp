@@ -1,7 +1,7 @@
 // Whole OBJ/MTL scenes (load_obj_scene), the default framing and headlight, and the camera, light
 // and background flags of the `rt` executable.
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <fmt/format.h>
 
@@ -132,7 +132,7 @@ TEST_CASE("OBJ scene: one model per material, MTL mapped, quads triangulated", "
   // A map_Kd that cannot be read is reported and dropped; the camera is made up and reported. The
   // matte material's Ke makes it an area light, so no headlight is added.
   REQUIRE(report.warnings.size() == 1);
-  CHECK_THAT(report.warnings[0], Catch::Contains("material 'mirror': map_Kd") && Catch::Contains("cannot be read"));
+  CHECK_THAT(report.warnings[0], Catch::Matchers::ContainsSubstring("material 'mirror': map_Kd") && Catch::Matchers::ContainsSubstring("cannot be read"));
   CHECK(mirror.diffuse_texture.empty());
   CHECK(matte.emits_light);
   CHECK_FALSE(mirror.emits_light);
@@ -150,7 +150,7 @@ TEST_CASE("OBJ scene: a missing MTL file is a warning and the default material i
   rt::LoadReport report;
   const rt::Scene scene = rt::load_obj_scene(dir / "quad.obj", &report);
   REQUIRE(report.warnings.size() == 1);
-  CHECK_THAT(report.warnings[0], Catch::Contains("quad.obj") && Catch::Contains("'quad.mtl' not found"));
+  CHECK_THAT(report.warnings[0], Catch::Matchers::ContainsSubstring("quad.obj") && Catch::Matchers::ContainsSubstring("'quad.mtl' not found"));
   REQUIRE(model_count(scene) == 1);  // both faces fall back to the one default material
   CHECK(scene.nodes[scene.root].models[0].mesh->triangles.size() == 2);
   const rt::Material expected = rt::default_obj_material();
@@ -163,8 +163,8 @@ TEST_CASE("OBJ scene: a missing MTL file is a warning and the default material i
   const rt_test::RtRun run = run_rt_in(dir, "render --width 16 --height 12 -o out.png quad.obj");
   INFO("stderr: " << run.err);
   CHECK(run.status == 0);
-  CHECK_THAT(run.err, Catch::Contains("warning:") && Catch::Contains("quad.mtl"));
-  CHECK_THAT(run.err, Catch::Contains("headlight"));
+  CHECK_THAT(run.err, Catch::Matchers::ContainsSubstring("warning:") && Catch::Matchers::ContainsSubstring("quad.mtl"));
+  CHECK_THAT(run.err, Catch::Matchers::ContainsSubstring("headlight"));
   CHECK(fs::exists(dir.path() / "out.png"));
   const rt_test::RtRun quiet = run_rt_in(dir, "render --quiet --width 16 --height 12 -o out.png quad.obj");
   CHECK(quiet.status == 0);
@@ -227,22 +227,22 @@ TEST_CASE("OBJ scene: malformed files give one error naming the file and the lin
         rt::load_obj_scene(dir / "bad.obj");
         FAIL("no error");
       } catch (const rt::InputError& error) {
-        CHECK_THAT(error.what(), Catch::Contains(c.where) && Catch::Contains(c.reason));
+        CHECK_THAT(error.what(), Catch::Matchers::ContainsSubstring(c.where) && Catch::Matchers::ContainsSubstring(c.reason));
       }
       const rt_test::RtRun run = run_rt_in(dir, "render bad.obj");
       INFO("stderr: " << run.err);
       CHECK(run.status == 1);
       CHECK(std::count(run.err.begin(), run.err.end(), '\n') == 1);
-      CHECK_THAT(run.err, Catch::StartsWith("rt: error: ") && Catch::Contains(c.where));
+      CHECK_THAT(run.err, Catch::Matchers::StartsWith("rt: error: ") && Catch::Matchers::ContainsSubstring(c.where));
       CHECK(dir.entries() == std::vector<std::string>{"bad.obj"});  // nothing written
     }
   }
   SECTION("missing file") {
     rt_test::TempDir dir;
-    CHECK_THROWS_WITH(rt::load_obj_scene(dir / "none.obj"), Catch::Contains("none.obj") && Catch::Contains("no such file"));
+    CHECK_THROWS_WITH(rt::load_obj_scene(dir / "none.obj"), Catch::Matchers::ContainsSubstring("none.obj") && Catch::Matchers::ContainsSubstring("no such file"));
     const rt_test::RtRun run = run_rt_in(dir, "render none.obj");
     CHECK(run.status == 1);
-    CHECK_THAT(run.err, Catch::Contains("none.obj: no such file"));
+    CHECK_THAT(run.err, Catch::Matchers::ContainsSubstring("none.obj: no such file"));
     CHECK(dir.entries().empty());
   }
 }
@@ -342,7 +342,7 @@ TEST_CASE("rt flags: --eye/--target, --point-light, --background, --fovy", "[cli
                                                 "--stats lit.json -o lit.exr");
   INFO("stderr: " << lit_run.err);
   REQUIRE(lit_run.status == 0);
-  CHECK_THAT(lit_run.err, !Catch::Contains("headlight"));
+  CHECK_THAT(lit_run.err, !Catch::Matchers::ContainsSubstring("headlight"));
   CHECK(nlohmann::json::parse(read_file(dir.path() / "lit.json")).at("lights") == 1);
   const rt::Image lit = rt::read_image(dir / "lit.exr");
   CHECK(lit.pixels != framed.pixels);
@@ -352,8 +352,8 @@ TEST_CASE("rt flags: --eye/--target, --point-light, --background, --fovy", "[cli
   const rt_test::RtRun info =
       run_rt_in(dir, "info pyramid.obj --point-light 0 5 0 1 0 0 --directional-light 1 1 1 .5 .5 .5");
   CHECK(info.status == 0);
-  CHECK_THAT(info.out, Catch::Contains("lights      2") && Catch::Contains("point at (0, 5, 0), colour (1, 0, 0)") &&
-                           Catch::Contains("directional towards (1, 1, 1)"));
+  CHECK_THAT(info.out, Catch::Matchers::ContainsSubstring("lights      2") && Catch::Matchers::ContainsSubstring("point at (0, 5, 0), colour (1, 0, 0)") &&
+                           Catch::Matchers::ContainsSubstring("directional towards (1, 1, 1)"));
 
   // --background colours the misses.
   REQUIRE(run_rt_in(dir, base + "--background 0.25 0.5 0.75 -o bg.exr").status == 0);
@@ -363,7 +363,7 @@ TEST_CASE("rt flags: --eye/--target, --point-light, --background, --fovy", "[cli
   const std::string scene = quoted(std::string(RT_SOURCE_DIR) + "/scenes/default.json");
   const rt_test::RtRun json_info = run_rt_in(dir, "info " + scene + " --fovy 30 --eye 1 2 3");
   CHECK(json_info.status == 0);
-  CHECK_THAT(json_info.out, Catch::Contains("eye (1, 2, 3)") && Catch::Contains("fovy 30 deg"));
+  CHECK_THAT(json_info.out, Catch::Matchers::ContainsSubstring("eye (1, 2, 3)") && Catch::Matchers::ContainsSubstring("fovy 30 deg"));
 }
 
 TEST_CASE("rt flags: bad values are usage errors (exit 2) and nothing is written", "[cli][obj]") {
@@ -397,7 +397,7 @@ TEST_CASE("rt flags: bad values are usage errors (exit 2) and nothing is written
         const rt_test::RtRun run = run_rt_in(dir, command + std::string(c.args));
         INFO(command << c.args << "\nstderr: " << run.err);
         CHECK(run.status == 2);
-        CHECK_THAT(run.err, Catch::Contains(c.message));
+        CHECK_THAT(run.err, Catch::Matchers::ContainsSubstring(c.message));
       }
       CHECK(dir.entries() == std::vector<std::string>{"pyramid.obj"});
     }
@@ -582,7 +582,7 @@ TEST_CASE("OBJ parser: what the features file gives", "[obj]") {
   CHECK(last.texcoords.empty());          // the pentagon has no vt
   CHECK(last.normals.size() == last.positions.size());
   REQUIRE(report.warnings.size() == 1);
-  CHECK_THAT(report.warnings[0], Catch::Contains("1 material(s) not defined") && Catch::Contains("'nothere'"));
+  CHECK_THAT(report.warnings[0], Catch::Matchers::ContainsSubstring("1 material(s) not defined") && Catch::Matchers::ContainsSubstring("'nothere'"));
 }
 
 TEST_CASE("OBJ parser: chunk boundaries at every line give the same scene as one chunk", "[obj]") {
@@ -649,7 +649,7 @@ TEST_CASE("OBJ parser: relative indices reach back across many chunks", "[obj]")
   // A relative index before the first vertex, in a late chunk, names its line.
   write_file(dir.path() / "strip.obj", text + "f -1 -2 -103\n");
   CHECK_THAT(load_error(dir / "strip.obj", {1}),
-             Catch::Contains("strip.obj:204: vertex index out of range: a relative index points before the first "
+             Catch::Matchers::ContainsSubstring("strip.obj:204: vertex index out of range: a relative index points before the first "
                              "vertex"));
 }
 
@@ -686,7 +686,7 @@ TEST_CASE("OBJ parser: errors in late chunks name their line and the number chec
       write_file(path, c.text);
       for (std::size_t chunk_bytes : {std::size_t(1), std::size_t(100), std::size_t(4096), std::size_t(1) << 30}) {
         INFO("chunk_bytes " << chunk_bytes);
-        CHECK_THAT(load_error(path, {chunk_bytes}), Catch::Contains(c.message));
+        CHECK_THAT(load_error(path, {chunk_bytes}), Catch::Matchers::ContainsSubstring(c.message));
       }
     }
   }
@@ -701,8 +701,8 @@ TEST_CASE("OBJ parser: an MTL error comes at its mtllib line, before later bad f
   for (std::size_t chunk_bytes : {std::size_t(1), std::size_t(1) << 30}) {
     INFO("chunk_bytes " << chunk_bytes);
     CHECK_THAT(load_error(dir / "mtl_first.obj", {chunk_bytes}),
-               Catch::Contains("bad.mtl:2: 'Kd': 'nan' is not finite"));
-    CHECK_THAT(load_error(dir / "face_first.obj", {chunk_bytes}), Catch::Contains("face_first.obj:4: bad face"));
+               Catch::Matchers::ContainsSubstring("bad.mtl:2: 'Kd': 'nan' is not finite"));
+    CHECK_THAT(load_error(dir / "face_first.obj", {chunk_bytes}), Catch::Matchers::ContainsSubstring("face_first.obj:4: bad face"));
   }
 }
 
@@ -719,7 +719,7 @@ TEST_CASE("OBJ parser: numbers are rounded once, to float32", "[obj]") {
   CHECK(mesh.positions[1] == rt::Vec3f(0.0f, -750.0f, 4.0f));  // 1e-50 underflows to 0
   // Beyond float's range a coordinate is infinite, and beyond the world's limit.
   write_file(dir.path() / "n.obj", "v 0 0 0\nv 1 0 0\nv 0 1e39 0\nf 1 2 3\n");
-  CHECK_THAT(load_error(dir / "n.obj"), Catch::Contains("vertex 3 has a coordinate inf, beyond +-1e+17"));
+  CHECK_THAT(load_error(dir / "n.obj"), Catch::Matchers::ContainsSubstring("vertex 3 has a coordinate inf, beyond +-1e+17"));
 }
 
 TEST_CASE("OBJ parser: a face of 300 vertices is a fan of 298 triangles", "[obj]") {

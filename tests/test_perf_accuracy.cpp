@@ -1,7 +1,7 @@
 // rt-perf accuracy: the sweep plan, the CSV and Markdown output, and the error metrics on images
 // whose errors are known by construction.
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <cmath>
 #include <limits>
@@ -116,11 +116,11 @@ TEST_CASE("accuracy CSV and Markdown rows carry every column", "[perf]") {
   const std::string header = rt::perf::csv_header();
   for (const char* column : {"knob", "value", "time_s_median", "time_s_min", "time_s_max", "rays", "rmse", "psnr",
                              "max_abs", "pct_over_1_255"})
-    CHECK_THAT(header, Catch::Contains(column));
+    CHECK_THAT(header, Catch::Matchers::ContainsSubstring(column));
   const std::string row = rt::perf::csv_row(m);
   CHECK(std::count(row.begin(), row.end(), ',') == std::count(header.begin(), header.end(), ','));
-  CHECK_THAT(row, Catch::StartsWith("ray_offset,fixed:1e-2,0,1spp,0.500000,0.250000,0.750000,"));
-  CHECK_THAT(row, Catch::Contains(",1234,0.01,40.0000,0.2,3.5000"));
+  CHECK_THAT(row, Catch::Matchers::StartsWith("ray_offset,fixed:1e-2,0,1spp,0.500000,0.250000,0.750000,"));
+  CHECK_THAT(row, Catch::Matchers::ContainsSubstring(",1234,0.01,40.0000,0.2,3.5000"));
   const std::string table = rt::perf::markdown_table({m, m});
   CHECK(std::count(table.begin(), table.end(), '\n') == 4);  // header, rule, two rows
 }
@@ -156,14 +156,14 @@ TEST_CASE("rt-perf accuracy writes the CSV, the table and the truth, bad argumen
   REQUIRE(run.status == 0);
   const std::string csv = rt_test::read_file(dir.path() / "result" / "accuracy.csv");
   CHECK(std::count(csv.begin(), csv.end(), '\n') == 1 + 9 + 6);  // header, depths 0..8, six offsets
-  CHECK_THAT(csv, Catch::StartsWith(rt::perf::csv_header()));
+  CHECK_THAT(csv, Catch::Matchers::StartsWith(rt::perf::csv_header()));
   CHECK(std::filesystem::exists(dir.path() / "result" / "accuracy.md"));
   CHECK(std::filesystem::exists(dir.path() / "result" / "truth.exr"));
-  CHECK_THAT(run.out, Catch::Contains("| max_depth | 5 (default) |"));
+  CHECK_THAT(run.out, Catch::Matchers::ContainsSubstring("| max_depth | 5 (default) |"));
 
   CHECK(rt_test::run_in(dir, RT_PERF_EXECUTABLE, "accuracy --out x --knobs colour").status == 2);
   CHECK(rt_test::run_in(dir, RT_PERF_EXECUTABLE, "accuracy").status == 2);  // --out is required
   const rt_test::RtRun missing = rt_test::run_in(dir, RT_PERF_EXECUTABLE, "accuracy missing.json --out x");
   CHECK(missing.status == 1);
-  CHECK_THAT(missing.err, Catch::Contains("missing.json"));
+  CHECK_THAT(missing.err, Catch::Matchers::ContainsSubstring("missing.json"));
 }

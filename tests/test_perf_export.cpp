@@ -1,6 +1,6 @@
 // rt-perf export-mitsuba: the PLY files, scene.json as rt render would load the scene, bad arguments.
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <cstring>
 #include <fstream>
@@ -135,9 +135,9 @@ TEST_CASE("rt-perf export-mitsuba: an OBJ gets rt render's default lights, bad i
   CHECK(rt_test::run_in(dir, RT_PERF_EXECUTABLE, "export-mitsuba tri.obj").status == 2);  // --out is required
   const rt_test::RtRun camera = rt_test::run_in(dir, RT_PERF_EXECUTABLE, "export-mitsuba tri.obj --out o --up 0 0 0");
   CHECK(camera.status == 2);
-  CHECK_THAT(camera.err, Catch::StartsWith("rt-perf: error: --up"));
+  CHECK_THAT(camera.err, Catch::Matchers::StartsWith("rt-perf: error: --up"));
   rt_test::write_file(dir.path() / "file", "");
   const rt_test::RtRun out = rt_test::run_in(dir, RT_PERF_EXECUTABLE, "export-mitsuba tri.obj --out file");
   CHECK(out.status == 1);
-  CHECK_THAT(out.err, Catch::Contains("--out file: cannot create the directory"));
+  CHECK_THAT(out.err, Catch::Matchers::ContainsSubstring("--out file: cannot create the directory"));
 }

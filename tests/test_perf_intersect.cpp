@@ -1,7 +1,7 @@
 // rt-perf intersect: ray sets, agreement, the reference's time budget, Embree memory and the
 // scaling sizes.
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <cmath>
 #include <cstring>

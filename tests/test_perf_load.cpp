@@ -1,6 +1,6 @@
 // rt-perf load: which bytes are counted, the JSON and table output, bad arguments.
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <sstream>
 #include <string>
@@ -37,7 +37,7 @@ TEST_CASE("load: a .gltf counts its buffer and image files, once each and other 
   CHECK(obj.files == std::vector<std::string>{dir / "tri.obj"});
   CHECK(obj.bytes == std::string(kTriangleObj).size());
   CHECK(obj.counted == "the file");
-  CHECK_THROWS_WITH(rt::perf::scene_input_files(dir / "none.obj"), Catch::Contains("none.obj: no such file"));
+  CHECK_THROWS_WITH(rt::perf::scene_input_files(dir / "none.obj"), Catch::Matchers::ContainsSubstring("none.obj: no such file"));
 }
 
 TEST_CASE("load: the measurement's MB/s is bytes over the median, 1 MB = 10^6 bytes", "[perf]") {
@@ -82,16 +82,16 @@ TEST_CASE("rt-perf load prints a table or one JSON object per file and bad argum
 
   const rt_test::RtRun table = rt_test::run_in(dir, RT_PERF_EXECUTABLE, "load tri.obj --runs 1");
   REQUIRE(table.status == 0);
-  CHECK_THAT(table.out, Catch::Contains("| file | bytes |") && Catch::Contains("| tri.obj | 32 | the file |"));
+  CHECK_THAT(table.out, Catch::Matchers::ContainsSubstring("| file | bytes |") && Catch::Matchers::ContainsSubstring("| tri.obj | 32 | the file |"));
 
   const rt_test::RtRun zero_runs = rt_test::run_in(dir, RT_PERF_EXECUTABLE, "load tri.obj --runs 0");
   CHECK(zero_runs.status == 1);
-  CHECK_THAT(zero_runs.err, Catch::Contains("--runs must be at least 1"));
+  CHECK_THAT(zero_runs.err, Catch::Matchers::ContainsSubstring("--runs must be at least 1"));
   const rt_test::RtRun missing = rt_test::run_in(dir, RT_PERF_EXECUTABLE, "load none.obj");
   CHECK(missing.status == 1);
-  CHECK_THAT(missing.err, Catch::Contains("none.obj: no such file"));
+  CHECK_THAT(missing.err, Catch::Matchers::ContainsSubstring("none.obj: no such file"));
   const rt_test::RtRun malformed = rt_test::run_in(dir, RT_PERF_EXECUTABLE, "load bad.obj --runs 1");
   CHECK(malformed.status == 1);
-  CHECK_THAT(malformed.err, Catch::Contains("bad.obj:2: vertex index 2 out of range"));
+  CHECK_THAT(malformed.err, Catch::Matchers::ContainsSubstring("bad.obj:2: vertex index 2 out of range"));
   CHECK(rt_test::run_in(dir, RT_PERF_EXECUTABLE, "load").status == 2);
 }

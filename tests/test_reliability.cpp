@@ -1,7 +1,7 @@
 // Reliability: resource limits refused before allocation, the NaN/Inf guard, cancellation of the
 // render loop (and SIGINT/SIGTERM on the real executable), faults while writing, --debug-pixel.
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <signal.h>
 #include <sys/stat.h>
@@ -91,7 +91,7 @@ TEST_CASE("requests that cannot fit are refused before allocation, naming what w
     scene.settings.width = scene.settings.height = 2000;
     const ScopedMemoryLimit limit(16 << 20);
     CHECK_THROWS_WITH(rt::check_render_memory(scene),
-                      Catch::Contains("2000x2000 image needs 103 MiB, 16 MiB available"));
+                      Catch::Matchers::ContainsSubstring("2000x2000 image needs 103 MiB, 16 MiB available"));
     CHECK_THROWS_AS(render(scene, rt::RenderOptions{}), rt::InputError);
   }
   SECTION("flattening instances, counted through shared nodes") {
@@ -100,8 +100,8 @@ TEST_CASE("requests that cannot fit are refused before allocation, naming what w
     const std::uint64_t leaf_triangles = scene.nodes.back().models[0].mesh->triangles.size();
     CHECK(rt::sum_over_instances(scene, [](const rt::Node&) { return std::uint64_t(1); }) == (std::uint64_t(1) << 31) - 1);
     CHECK_THROWS_WITH(rt::flatten_scene(scene),
-                      Catch::Contains(fmt::format("flattening {} triangles", leaf_triangles << 30)) &&
-                          Catch::Contains("available"));
+                      Catch::Matchers::ContainsSubstring(fmt::format("flattening {} triangles", leaf_triangles << 30)) &&
+                          Catch::Matchers::ContainsSubstring("available"));
   }
   SECTION("instance counts saturate instead of wrapping") {
     const rt::Scene scene = make_doubling_scene(70);
@@ -111,14 +111,14 @@ TEST_CASE("requests that cannot fit are refused before allocation, naming what w
     rt::Scene scene = make_doubling_scene(3);
     scene.nodes[2].children.push_back(1);
     CHECK_THROWS_WITH(rt::sum_over_instances(scene, [](const rt::Node&) { return std::uint64_t(1); }),
-                      Catch::Contains("node hierarchy contains a cycle"));
-    CHECK_THROWS_WITH(rt::flatten_scene(scene), Catch::Contains("node hierarchy contains a cycle"));
+                      Catch::Matchers::ContainsSubstring("node hierarchy contains a cycle"));
+    CHECK_THROWS_WITH(rt::flatten_scene(scene), Catch::Matchers::ContainsSubstring("node hierarchy contains a cycle"));
   }
   SECTION("Embree's BVH build, through its memory monitor") {
     const rt::FlatScene flat = rt::flatten_scene(make_doubling_scene(10));  // 1,024 spheres of 48 triangles
     const ScopedMemoryLimit limit(64 << 10);
     CHECK_THROWS_WITH(rt::EmbreeAccel(flat, rt::AccelOptions{}),
-                      Catch::Contains("out of memory: Embree asked for") && Catch::Contains("64 KiB were available"));
+                      Catch::Matchers::ContainsSubstring("out of memory: Embree asked for") && Catch::Matchers::ContainsSubstring("64 KiB were available"));
   }
 }
 
@@ -133,7 +133,7 @@ TEST_CASE("JSON node nesting: 255 levels load, 256 are refused, without exhausti
   const rt::Scene scene = rt::parse_scene_json(nested(255), "deep.json");
   CHECK(scene.nodes.size() == 257);  // the root, 255 chained nodes and the leaf
   CHECK_THROWS_WITH(rt::parse_scene_json(nested(256), "deep.json"),
-                    Catch::Contains("deep.json:/nodes/0/children/...: node hierarchy deeper than 256 levels"));
+                    Catch::Matchers::ContainsSubstring("deep.json:/nodes/0/children/...: node hierarchy deeper than 256 levels"));
 }
 
 TEST_CASE("non-finite samples become black, are counted and the first pixel is reported", "[reliability]") {
@@ -203,14 +203,14 @@ TEST_CASE("rt render --debug-pixel prints the pixel's ray tree and writes nothin
   const rt_test::RtRun run = rt_test::run_rt_in(dir, "render --debug-pixel 320 240");
   INFO("stderr: " << run.err);
   CHECK(run.status == 0);
-  CHECK_THAT(run.out, Catch::Contains("pixel (320, 240) sample 1 of 1"));
-  CHECK_THAT(run.out, Catch::Contains("camera ray origin"));
-  CHECK_THAT(run.out, Catch::Contains("light 0:"));
-  CHECK_THAT(run.out, Catch::Contains("pixel (320, 240) = ("));
+  CHECK_THAT(run.out, Catch::Matchers::ContainsSubstring("pixel (320, 240) sample 1 of 1"));
+  CHECK_THAT(run.out, Catch::Matchers::ContainsSubstring("camera ray origin"));
+  CHECK_THAT(run.out, Catch::Matchers::ContainsSubstring("light 0:"));
+  CHECK_THAT(run.out, Catch::Matchers::ContainsSubstring("pixel (320, 240) = ("));
   CHECK(dir.entries().empty());
   const rt_test::RtRun outside = rt_test::run_rt_in(dir, "render --debug-pixel 640 0");
   CHECK(outside.status == 2);
-  CHECK_THAT(outside.err, Catch::Contains("--debug-pixel 640 0 is outside the 640x480 image"));
+  CHECK_THAT(outside.err, Catch::Matchers::ContainsSubstring("--debug-pixel 640 0 is outside the 640x480 image"));
 }
 
 TEST_CASE("rt render --memory-limit refuses an image that does not fit, before rendering", "[reliability][cli]") {
@@ -218,7 +218,7 @@ TEST_CASE("rt render --memory-limit refuses an image that does not fit, before r
   const rt_test::RtRun run = rt_test::run_rt_in(dir, "render --width 4000 --height 3000 --memory-limit 64M");
   INFO("stderr: " << run.err);
   CHECK(run.status == 1);
-  CHECK_THAT(run.err, Catch::Contains("4000x3000 image needs 309 MiB, 64 MiB available"));
+  CHECK_THAT(run.err, Catch::Matchers::ContainsSubstring("4000x3000 image needs 309 MiB, 64 MiB available"));
   CHECK(dir.entries().empty());
   CHECK(rt_test::run_rt_in(dir, "render --memory-limit lots").status == 2);
 }
@@ -234,22 +234,22 @@ TEST_CASE("faults while writing leave no partial file and an existing file untou
     INFO("stderr: " << run.err);
     CHECK(run.status == 1);
     CHECK(std::count(run.err.begin(), run.err.end(), '\n') == 1);
-    CHECK_THAT(run.err, Catch::Contains("out.png: cannot write the file: File too large"));
+    CHECK_THAT(run.err, Catch::Matchers::ContainsSubstring("out.png: cannot write the file: File too large"));
   }
   SECTION("an unknown extension") {
     const rt_test::RtRun run = rt_test::run_rt_in(dir, "render -o out.xyz");
     CHECK(run.status == 2);
-    CHECK_THAT(run.err, Catch::Contains("out.xyz: unknown image format '.xyz'"));
+    CHECK_THAT(run.err, Catch::Matchers::ContainsSubstring("out.xyz: unknown image format '.xyz'"));
   }
   SECTION("a directory that does not exist, or is a file") {
-    CHECK_THAT(rt_test::run_rt_in(dir, "render -o missing/out.png").err, Catch::Contains("output directory does not exist"));
-    CHECK_THAT(rt_test::run_rt_in(dir, "render -o out.png/x.png").err, Catch::Contains("'out.png' is not a directory"));
+    CHECK_THAT(rt_test::run_rt_in(dir, "render -o missing/out.png").err, Catch::Matchers::ContainsSubstring("output directory does not exist"));
+    CHECK_THAT(rt_test::run_rt_in(dir, "render -o out.png/x.png").err, Catch::Matchers::ContainsSubstring("'out.png' is not a directory"));
   }
   SECTION("a destination that is not a regular file") {
     REQUIRE(mkfifo((dir.path() / "pipe.png").c_str(), 0600) == 0);
     const rt_test::RtRun run = rt_test::run_rt_in(dir, "render -o pipe.png");
     CHECK(run.status == 1);
-    CHECK_THAT(run.err, Catch::Contains("pipe.png: exists and is not a regular file"));
+    CHECK_THAT(run.err, Catch::Matchers::ContainsSubstring("pipe.png: exists and is not a regular file"));
     CHECK(fs::is_fifo(dir.path() / "pipe.png"));
     fs::remove(dir.path() / "pipe.png");
   }
@@ -312,7 +312,7 @@ TEST_CASE("SIGINT and SIGTERM stop a long render within a second, writing nothin
     INFO("stderr: " << run.err);
     CHECK(run.status == 130);
     CHECK(run.seconds < 1.0);
-    CHECK_THAT(run.err, Catch::Contains("interrupted by SIGINT") && Catch::Contains("nothing written"));
+    CHECK_THAT(run.err, Catch::Matchers::ContainsSubstring("interrupted by SIGINT") && Catch::Matchers::ContainsSubstring("nothing written"));
     CHECK(dir.entries().empty());
   }
   SECTION("SIGTERM with --partial-output: exit 143, the finished tiles in out.partial.png") {
@@ -322,7 +322,7 @@ TEST_CASE("SIGINT and SIGTERM stop a long render within a second, writing nothin
     INFO("stderr: " << run.err);
     CHECK(run.status == 143);
     CHECK(run.seconds < 1.0);
-    CHECK_THAT(run.err, Catch::Contains("interrupted by SIGTERM") && Catch::Contains("out.partial.png"));
+    CHECK_THAT(run.err, Catch::Matchers::ContainsSubstring("interrupted by SIGTERM") && Catch::Matchers::ContainsSubstring("out.partial.png"));
     CHECK(dir.entries() == std::vector<std::string>{"out.partial.png"});
   }
   SECTION("SIGINT in a batch: the render in progress stops, no other scene starts") {
@@ -332,7 +332,7 @@ TEST_CASE("SIGINT and SIGTERM stop a long render within a second, writing nothin
     INFO("stderr: " << run.err);
     CHECK(run.status == 130);
     CHECK(run.seconds < 1.0);
-    CHECK_THAT(run.err, Catch::Contains("rt: batch interrupted: 0 rendered, 0 skipped, 0 failed, 1 not started"));
+    CHECK_THAT(run.err, Catch::Matchers::ContainsSubstring("rt: batch interrupted: 0 rendered, 0 skipped, 0 failed, 1 not started"));
     CHECK(dir.entries() == std::vector<std::string>{"out"});
     CHECK(std::filesystem::is_empty(dir.path() / "out"));
   }

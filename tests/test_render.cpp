@@ -1,6 +1,6 @@
 // The render loop (backend agreement, thread-count independence, pixel layout) and image IO.
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,7 +1,7 @@
 // find_color on tiny hand-built scenes against Phong / Blinn-Phong values worked out by hand:
 //   R = E + sum_j V_j L_j (Ca + Cd max(n.l, 0) + Cs max(n.h, 0)^s) + Cs FindColor(reflected).
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <cmath>
 #include <memory>

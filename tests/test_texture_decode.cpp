@@ -7,7 +7,7 @@
 #include <random>
 #include <set>
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 #include <jpeglib.h>
 #include <nlohmann/json.hpp>
 #include <png.h>

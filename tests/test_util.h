@@ -15,6 +15,7 @@
 #include <stdexcept>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <system_error>
 #include <utility>
 #include <vector>
@@ -155,10 +156,10 @@ inline RtRun run_in(const TempDir& cwd, const std::string& executable, const std
 inline RtRun run_rt_in(const TempDir& cwd, const std::string& args) { return run_in(cwd, RT_EXECUTABLE, args); }
 
 // The material of `scene` called `name`; throws when there is none.
-inline const rt::Material& material_named(const rt::Scene& scene, const std::string& name) {
+inline const rt::Material& material_named(const rt::Scene& scene, std::string_view name) {
   for (const rt::Material& m : scene.materials)
     if (m.name == name) return m;
-  throw std::runtime_error("no material '" + name + "'");
+  throw std::runtime_error("no material '" + std::string(name) + "'");
 }
 
 // A small valid native scene, 32x24: one red sphere under one directional light. `extra` is

@@ -1,7 +1,7 @@
 // rt view: the camera moves, the no-display error, and screenshots from a real window (Xvfb with
 // Mesa's software OpenGL) against rt render's image of the same scene.
 
-#include <catch2/catch.hpp>
+#include "catch.h"
 
 #include <fcntl.h>
 #include <signal.h>

@@ -6,8 +6,12 @@
 #include <mutex>
 #include <string>
 
-#include <embree3/rtcore.h>
 #include <fmt/format.h>
+#if RT_EMBREE_MAJOR >= 4
+#include <embree4/rtcore.h>
+#else
+#include <embree3/rtcore.h>
+#endif
 
 #include "rt/accel/reference_accel.h"
 #include "rt/core/error.h"
@@ -26,6 +30,7 @@ const char* error_name(RTCError code) {
     case RTC_ERROR_OUT_OF_MEMORY: return "out of memory";
     case RTC_ERROR_UNSUPPORTED_CPU: return "unsupported CPU";
     case RTC_ERROR_CANCELLED: return "cancelled";
+    default: break;  // Embree 4.3 added a GPU-only code
   }
   return "unrecognised error";
 }
@@ -92,11 +97,71 @@ struct BestHit {
 
 constexpr unsigned kPacketSize = 16;
 
-// Embree passes our RTCIntersectContext pointer to filters and user-geometry callbacks, so the
-// fields after it travel along (the pattern of Embree's own tutorials). Each ray's id indexes its
-// BestHit: 0 for a single ray, the lane for a packet. Occlusion queries pass a plain context.
+// Embree 4.0 renamed the query context (RTCIntersectContext became RTCRayQueryContext) and moved
+// the query's flags and context filter out of it into RTCIntersectArguments and
+// RTCOccludedArguments, which rtcIntersect*/rtcOccluded* take last instead of the context first.
+// Query hides that difference; it is the only part of this file that depends on the version.
+#if RTC_VERSION_MAJOR >= 4
+using QueryContext = RTCRayQueryContext;
+constexpr RTCSceneFlags kSceneFilterFlag = RTC_SCENE_FLAG_FILTER_FUNCTION_IN_ARGUMENTS;
+#else
+using QueryContext = RTCIntersectContext;
+constexpr RTCSceneFlags kSceneFilterFlag = RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION;
+#endif
+
+// One query: its context (whose address reaches the callbacks), the context filter that orders
+// closest hits (null: none, as for occlusion) and whether the rays are coherent (packets).
+class Query {
+ public:
+  Query(QueryContext& context, RTCFilterFunctionN filter, bool coherent) {
+#if RTC_VERSION_MAJOR >= 4
+    rtcInitRayQueryContext(&context);
+    // Embree 4 calls an argument filter only for geometries that ask for it, or for all with
+    // INVOKE_ARGUMENT_FILTER; Embree 3 called the context filter for all.
+    const auto flags = static_cast<RTCRayQueryFlags>(
+        (coherent ? RTC_RAY_QUERY_FLAG_COHERENT : RTC_RAY_QUERY_FLAG_INCOHERENT) |
+        (filter ? RTC_RAY_QUERY_FLAG_INVOKE_ARGUMENT_FILTER : RTC_RAY_QUERY_FLAG_NONE));
+    rtcInitIntersectArguments(&intersect_);
+    intersect_.flags = flags;
+    intersect_.context = &context;
+    intersect_.filter = filter;
+    rtcInitOccludedArguments(&occluded_);
+    occluded_.flags = flags;
+    occluded_.context = &context;
+    occluded_.filter = filter;
+#else
+    rtcInitIntersectContext(&context);
+    context.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+    context.filter = filter;
+    context_ = &context;
+#endif
+  }
+
+#if RTC_VERSION_MAJOR >= 4
+  void intersect(RTCScene scene, RTCRayHit& ray) { rtcIntersect1(scene, &ray, &intersect_); }
+  void intersect(const int* valid, RTCScene scene, RTCRayHit16& rays) { rtcIntersect16(valid, scene, &rays, &intersect_); }
+  void occluded(RTCScene scene, RTCRay& ray) { rtcOccluded1(scene, &ray, &occluded_); }
+  void occluded(const int* valid, RTCScene scene, RTCRay16& rays) { rtcOccluded16(valid, scene, &rays, &occluded_); }
+
+ private:
+  RTCIntersectArguments intersect_;
+  RTCOccludedArguments occluded_;
+#else
+  void intersect(RTCScene scene, RTCRayHit& ray) { rtcIntersect1(scene, context_, &ray); }
+  void intersect(const int* valid, RTCScene scene, RTCRayHit16& rays) { rtcIntersect16(valid, scene, context_, &rays); }
+  void occluded(RTCScene scene, RTCRay& ray) { rtcOccluded1(scene, context_, &ray); }
+  void occluded(const int* valid, RTCScene scene, RTCRay16& rays) { rtcOccluded16(valid, scene, context_, &rays); }
+
+ private:
+  RTCIntersectContext* context_;
+#endif
+};
+
+// Embree passes our context's address to filters and user-geometry callbacks, so the fields after
+// it travel along (the pattern of Embree's own tutorials). Each ray's id indexes its BestHit: 0 for
+// a single ray, the lane for a packet. Occlusion queries pass a plain context.
 struct HitContext {
-  RTCIntersectContext embree;
+  QueryContext embree;
   BestHit* best;  // one per ray of the query
 
   BestHit& of(const RTCRayN* ray, unsigned n, unsigned i) const {
@@ -435,7 +500,7 @@ EmbreeAccel::EmbreeAccel(const FlatScene& flat, const AccelOptions& options) : i
   // The context filter orders the native triangle kernel's closest hits; user geometries order
   // their own; occlusion queries pass no filter.
   rtcSetSceneFlags(impl_->scene, static_cast<RTCSceneFlags>(
-                                     RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION |
+                                     kSceneFilterFlag |
                                      (compact ? RTC_SCENE_FLAG_COMPACT : RTC_SCENE_FLAG_NONE) |
                                      (options.embree_robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE)));
   rtcSetSceneBuildQuality(impl_->scene, to_embree(options.embree_quality));
@@ -503,14 +568,13 @@ Hit to_hit(const BestHit& best) {
 Hit EmbreeAccel::intersect(const Ray& ray) const {
   BestHit best = no_hit_yet(ray);
   HitContext context{{}, &best};
-  rtcInitIntersectContext(&context.embree);
-  context.embree.filter = impl_->context_filter;
+  Query query(context.embree, impl_->context_filter, false);
   RTCRayHit rayhit;
   fill_ray(ray, rayhit.ray);
   rayhit.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rayhit.hit.primID = RTC_INVALID_GEOMETRY_ID;
   rayhit.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-  rtcIntersect1(impl_->scene, &context.embree, &rayhit);
+  query.intersect(impl_->scene, rayhit);
   return to_hit(best);
 }
 
@@ -528,9 +592,7 @@ void EmbreeAccel::intersect_coherent(std::span<const Ray> rays, std::span<Hit> h
     const auto lanes = static_cast<unsigned>(std::min<std::size_t>(kPacketSize, rays.size() - first));
     BestHit best[kPacketSize];
     HitContext context{{}, best};
-    rtcInitIntersectContext(&context.embree);
-    context.embree.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-    context.embree.filter = impl_->context_filter;
+    Query query(context.embree, impl_->context_filter, true);
     alignas(64) RTCRayHit16 packet;
     alignas(64) int valid[kPacketSize];
     for (unsigned i = 0; i < kPacketSize; ++i) {
@@ -543,7 +605,7 @@ void EmbreeAccel::intersect_coherent(std::span<const Ray> rays, std::span<Hit> h
       packet.hit.primID[i] = RTC_INVALID_GEOMETRY_ID;
       packet.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
     }
-    rtcIntersect16(valid, impl_->scene, &context.embree, &packet);
+    query.intersect(valid, impl_->scene, packet);
     for (unsigned i = 0; i < lanes; ++i) hits[first + i] = to_hit(best[i]);
   }
 }
@@ -553,9 +615,8 @@ void EmbreeAccel::occluded_coherent(std::span<const Ray> rays, std::span<std::ui
     Accel::occluded_coherent(rays, blocked);
     return;
   }
-  RTCIntersectContext context;
-  rtcInitIntersectContext(&context);
-  context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+  QueryContext context;
+  Query query(context, nullptr, true);
   for (std::size_t first = 0; first < rays.size(); first += kPacketSize) {
     const auto lanes = static_cast<unsigned>(std::min<std::size_t>(kPacketSize, rays.size() - first));
     alignas(64) RTCRay16 packet;
@@ -564,17 +625,17 @@ void EmbreeAccel::occluded_coherent(std::span<const Ray> rays, std::span<std::ui
       valid[i] = i < lanes ? -1 : 0;
       fill_packet_lane(rays[first + (i < lanes ? i : 0)], i, packet);
     }
-    rtcOccluded16(valid, impl_->scene, &context, &packet);
+    query.occluded(valid, impl_->scene, packet);
     for (unsigned i = 0; i < lanes; ++i) blocked[first + i] = packet.tfar[i] == -kInfinity ? 1 : 0;
   }
 }
 
 bool EmbreeAccel::occluded(const Ray& ray) const {
-  RTCIntersectContext context;
-  rtcInitIntersectContext(&context);
+  QueryContext context;
+  Query query(context, nullptr, false);
   RTCRay embree_ray;
   fill_ray(ray, embree_ray);
-  rtcOccluded1(impl_->scene, &context, &embree_ray);
+  query.occluded(impl_->scene, embree_ray);
   return embree_ray.tfar == -kInfinity;  // Embree marks an occluded ray by tfar = -inf
 }
 

@@ -54,8 +54,11 @@ bool read_png_header(png_structp png, png_infop info, ImageLayout& layout) {
   if (png_get_valid(png, info, PNG_INFO_tRNS)) png_set_tRNS_to_alpha(png);
   if (depth == 16) png_set_swap(png);  // PNG stores 16-bit samples big-endian
   // zlib's Adler-32 of the image data is not verified (libpng still checks every chunk's CRC):
-  // it is some 6% of decoding a 2k texture, spent again on every render of it.
+  // it is some 6% of decoding a 2k texture, spent again on every render of it. Debian 13's
+  // libpng 1.6.48 is built without the option (PNG_DISABLE_ADLER32_CHECK_SUPPORTED).
+#ifdef PNG_IGNORE_ADLER32
   png_set_option(png, PNG_IGNORE_ADLER32, PNG_OPTION_ON);
+#endif
   png_set_interlace_handling(png);
   png_read_update_info(png, info);
   layout = {int(png_get_image_width(png, info)), int(png_get_image_height(png, info)), int(png_get_channels(png, info)),

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <map>
 #include <numbers>
+#include <type_traits>
 
 #include <fmt/format.h>
 #include <glm/gtc/matrix_transform.hpp>
@@ -34,6 +35,16 @@ constexpr double kPi = std::numbers::pi;
 constexpr std::size_t kMaxAccessorCount = std::size_t(1) << 28;
 // Image size used when a perspective camera gives an aspect ratio: height fixed, width follows.
 constexpr int kCameraImageHeight = 480;
+
+// A sparse accessor's byteOffset as a size: tinygltf 2.7 (Debian 12) stores it as int, which
+// can be negative; 2.9 (Debian 13) as size_t.
+template <class Offset>
+std::size_t non_negative_size(Offset offset) {
+  if constexpr (std::is_signed_v<Offset>)
+    return static_cast<std::size_t>(std::max<Offset>(0, offset));
+  else
+    return offset;
+}
 
 // Encoded bytes of images, by image index. tinygltf hands them (external files too) to its image
 // loader callback, which keeps them instead of decoding: OpenImageIO decodes. Only data: URIs are
@@ -221,10 +232,10 @@ std::vector<double> GltfReader::read_accessor(int index, const std::string& wher
         sparse.indices.componentType == TINYGLTF_COMPONENT_TYPE_SHORT)
       fail(child(child(sparse_at, "indices"), "componentType"), "sparse indices must be unsigned integers");
     const unsigned char* indices =
-        view_bytes(sparse.indices.bufferView, static_cast<std::size_t>(std::max(0, sparse.indices.byteOffset)), n,
+        view_bytes(sparse.indices.bufferView, non_negative_size(sparse.indices.byteOffset), n,
                    index_size, index_size, child(sparse_at, "indices"));
     const unsigned char* substitutes =
-        view_bytes(sparse.values.bufferView, static_cast<std::size_t>(std::max(0, sparse.values.byteOffset)), n,
+        view_bytes(sparse.values.bufferView, non_negative_size(sparse.values.byteOffset), n,
                    element_size, element_size, child(sparse_at, "values"));
     for (std::size_t k = 0; k < n; ++k) {
       const double target = read_component(indices + k * index_size, sparse.indices.componentType, false);

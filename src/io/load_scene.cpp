@@ -534,6 +534,8 @@ std::string line_column(const std::string& text, std::size_t byte) {
 Scene parse_scene_json(const std::string& text, const std::string& path) {
   if (text.starts_with("\xFF\xFE") || text.starts_with("\xFE\xFF"))
     throw InputError(path, "", "the file is UTF-16; scene files must be UTF-8 (or ASCII)");
+  // Said here, as nlohmann's wording for it differs between versions.
+  if (text.find_first_not_of(" \t\r\n") == std::string::npos) throw InputError(path, "", "empty file");
   json document;
   try {
     document = json::parse(text, nullptr, /*allow_exceptions=*/true, /*ignore_comments=*/true);

@@ -4,6 +4,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -384,6 +385,11 @@ std::pair<int, int> window_size(int width, int height) {
 }  // namespace
 
 void check_display() {
+#if GLFW_VERSION_MAJOR > 3 || (GLFW_VERSION_MAJOR == 3 && GLFW_VERSION_MINOR >= 4)
+  // GLFW 3.4 (Debian 13) also tries Wayland, whose client library prints a line of its own when
+  // there is no Wayland session; without one, X11 is the only window system to try.
+  if (!std::getenv("WAYLAND_DISPLAY")) glfwInitHint(GLFW_PLATFORM, GLFW_PLATFORM_X11);
+#endif
   if (glfwInit() == GLFW_TRUE) return;
   throw RuntimeError(fmt::format("rt view needs a window system and cannot open a window here ({}); "
                                  "render to a file instead: rt render SCENE -o image.png",

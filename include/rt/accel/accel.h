@@ -40,7 +40,7 @@ struct Hit {
   bool found() const { return primitive != kNoPrimitive; }
 };
 
-// embree: Embree 3, float32 triangles (see EmbreeKernel). reference: watertight ray/triangle test
+// embree: Embree 3.13 or 4, float32 triangles (see EmbreeKernel). reference: watertight ray/triangle test
 // in double precision, brute force. reference_barycentric: the seed's plain barycentric solve in
 // double, brute force (kept to show what the watertight formulation buys). Spheres are intersected
 // by the same double-precision test (intersect_sphere) in every backend.

@@ -1,5 +1,5 @@
 #pragma once
-// Embree 3 backend. This header and embree_accel.cpp are the only places that know Embree exists;
+// Embree backend (Embree 3.13 or 4). This header and embree_accel.cpp are the only places that know Embree exists;
 // the Embree headers are included by the .cpp alone.
 
 #include <cstddef>

@@ -56,7 +56,10 @@ enum class SkipRule : int {
   sample_zero,            // exact: the sample's unshadowed term is zero (triangle's back, n.l <= 0, black texel)
   sample_on_surface,      // always: no direction to the sample, or it is closer than the offset margin
 };
-inline constexpr int kSkipRuleCount = 14;
+// The number of rules, the size of every per-rule array: sample_on_surface must stay the last. (It
+// was once 14, one short: GCC 14's -Warray-bounds found the count of sample_on_surface written
+// past RayCounts::skipped.)
+inline constexpr int kSkipRuleCount = static_cast<int>(SkipRule::sample_on_surface) + 1;
 std::string to_string(SkipRule rule);
 
 // One light as the shader uses it: constants hoisted out of the per-hit loop (world space, double).
