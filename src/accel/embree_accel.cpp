@@ -360,6 +360,8 @@ void user_occluded(const RTCOccludedFunctionNArguments* args) {
 
 }  // namespace
 
+std::string_view embree_version() { return RTC_VERSION_STRING; }
+
 // Device-wide state, reached from Embree's callbacks. Accels sharing the device use it one after
 // another; each resets the error and the budget when it starts building.
 struct EmbreeDevice::Impl {

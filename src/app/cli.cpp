@@ -8,6 +8,7 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include "rt/accel/embree_accel.h"
 #include "rt/app/scene_options.h"
 #include "rt/core/error.h"
 #include "rt/core/memory.h"
@@ -48,7 +49,7 @@ std::string parse_tile(const std::string& text, RegionRequest& region) {
 
 int run_cli(int argc, char** argv) {
   CLI::App app{"rt: a Whitted ray tracer on Embree, with a double-precision reference intersector"};
-  app.set_version_flag("--version", std::string("rt ") + RT_VERSION);
+  app.set_version_flag("--version", fmt::format("rt {} (Embree {})", RT_VERSION, embree_version()));
   app.require_subcommand(1);
 
   RenderArgs render_args;

@@ -4,10 +4,14 @@
 
 #include <cstddef>
 #include <memory>
+#include <string_view>
 
 #include "rt/accel/accel.h"
 
 namespace rt {
+
+// The version of the Embree headers rt was built with, e.g. "4.3.3" (RTC_VERSION_STRING).
+std::string_view embree_version();
 
 // An Embree device (RTCDevice: Embree's thread pool and allocators). Several EmbreeAccels may
 // use one, one after another (not at the same time), as a batch of renders does; a device's
