@@ -113,39 +113,61 @@ constexpr RTCSceneFlags kSceneFilterFlag = RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTIO
 // closest hits (null: none, as for occlusion) and whether the rays are coherent (packets).
 class Query {
  public:
-  Query(QueryContext& context, RTCFilterFunctionN filter, bool coherent) {
+  Query(QueryContext& context, RTCFilterFunctionN filter, bool coherent) : context_(&context) {
 #if RTC_VERSION_MAJOR >= 4
     rtcInitRayQueryContext(&context);
+    filter_ = filter;
     // Embree 4 calls an argument filter only for geometries that ask for it, or for all with
     // INVOKE_ARGUMENT_FILTER; Embree 3 called the context filter for all.
-    const auto flags = static_cast<RTCRayQueryFlags>(
+    flags_ = static_cast<RTCRayQueryFlags>(
         (coherent ? RTC_RAY_QUERY_FLAG_COHERENT : RTC_RAY_QUERY_FLAG_INCOHERENT) |
         (filter ? RTC_RAY_QUERY_FLAG_INVOKE_ARGUMENT_FILTER : RTC_RAY_QUERY_FLAG_NONE));
-    rtcInitIntersectArguments(&intersect_);
-    intersect_.flags = flags;
-    intersect_.context = &context;
-    intersect_.filter = filter;
-    rtcInitOccludedArguments(&occluded_);
-    occluded_.flags = flags;
-    occluded_.context = &context;
-    occluded_.filter = filter;
 #else
     rtcInitIntersectContext(&context);
     context.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
     context.filter = filter;
-    context_ = &context;
 #endif
   }
 
 #if RTC_VERSION_MAJOR >= 4
-  void intersect(RTCScene scene, RTCRayHit& ray) { rtcIntersect1(scene, &ray, &intersect_); }
-  void intersect(const int* valid, RTCScene scene, RTCRayHit16& rays) { rtcIntersect16(valid, scene, &rays, &intersect_); }
-  void occluded(RTCScene scene, RTCRay& ray) { rtcOccluded1(scene, &ray, &occluded_); }
-  void occluded(const int* valid, RTCScene scene, RTCRay16& rays) { rtcOccluded16(valid, scene, &rays, &occluded_); }
+  void intersect(RTCScene scene, RTCRayHit& ray) {
+    RTCIntersectArguments arguments = intersect_arguments();
+    rtcIntersect1(scene, &ray, &arguments);
+  }
+  void intersect(const int* valid, RTCScene scene, RTCRayHit16& rays) {
+    RTCIntersectArguments arguments = intersect_arguments();
+    rtcIntersect16(valid, scene, &rays, &arguments);
+  }
+  void occluded(RTCScene scene, RTCRay& ray) {
+    RTCOccludedArguments arguments = occluded_arguments();
+    rtcOccluded1(scene, &ray, &arguments);
+  }
+  void occluded(const int* valid, RTCScene scene, RTCRay16& rays) {
+    RTCOccludedArguments arguments = occluded_arguments();
+    rtcOccluded16(valid, scene, &rays, &arguments);
+  }
 
  private:
-  RTCIntersectArguments intersect_;
-  RTCOccludedArguments occluded_;
+  // Only the arguments of the call made are filled (a query is one call).
+  RTCIntersectArguments intersect_arguments() const {
+    RTCIntersectArguments arguments;
+    rtcInitIntersectArguments(&arguments);
+    arguments.flags = flags_;
+    arguments.context = context_;
+    arguments.filter = filter_;
+    return arguments;
+  }
+  RTCOccludedArguments occluded_arguments() const {
+    RTCOccludedArguments arguments;
+    rtcInitOccludedArguments(&arguments);
+    arguments.flags = flags_;
+    arguments.context = context_;
+    arguments.filter = filter_;
+    return arguments;
+  }
+
+  RTCFilterFunctionN filter_;
+  RTCRayQueryFlags flags_;
 #else
   void intersect(RTCScene scene, RTCRayHit& ray) { rtcIntersect1(scene, context_, &ray); }
   void intersect(const int* valid, RTCScene scene, RTCRayHit16& rays) { rtcIntersect16(valid, scene, context_, &rays); }
@@ -153,8 +175,8 @@ class Query {
   void occluded(const int* valid, RTCScene scene, RTCRay16& rays) { rtcOccluded16(valid, scene, context_, &rays); }
 
  private:
-  RTCIntersectContext* context_;
 #endif
+  QueryContext* context_;
 };
 
 // Embree passes our context's address to filters and user-geometry callbacks, so the fields after
