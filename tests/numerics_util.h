@@ -202,9 +202,11 @@ inline std::size_t zero_area_triangles(const rt::FlatScene& flat) {
 // ---------------------------------------------------------------------------------------------
 // Intersector configurations.
 
-// embree_robust and embree_default use Embree's native triangle test with RTC_SCENE_FLAG_ROBUST on
-// and off; embree_watertight runs the reference's watertight test inside Embree's BVH.
-enum class Path { reference, reference_barycentric, embree_robust, embree_default, embree_watertight };
+// embree_robust and embree_default: Embree's native triangle test with RTC_SCENE_FLAG_ROBUST on and
+// off; embree_watertight and embree_exact: the kernels of those names (the float32 watertight test
+// in clusters; the reference's own test inside Embree's BVH); rt_default: AccelOptions{} as rt
+// render builds it, whatever the defaults are: the path whose watertightness the suite asserts.
+enum class Path { reference, reference_barycentric, embree_robust, embree_default, embree_watertight, embree_exact, rt_default };
 
 inline const char* name(Path path) {
   switch (path) {
@@ -212,7 +214,9 @@ inline const char* name(Path path) {
     case Path::reference_barycentric: return "reference-barycentric (seed solve)";
     case Path::embree_robust: return "Embree robust";
     case Path::embree_default: return "Embree default (robust off)";
-    case Path::embree_watertight: return "Embree + watertight kernel";
+    case Path::embree_watertight: return "Embree + watertight kernel (float32)";
+    case Path::embree_exact: return "Embree + exact kernel (reference test)";
+    case Path::rt_default: return "rt default (AccelOptions{})";
   }
   return "?";
 }
@@ -222,13 +226,16 @@ inline std::unique_ptr<rt::Accel> build(Path path, const rt::FlatScene& flat) {
   switch (path) {
     case Path::reference: return rt::build_accel(rt::AccelKind::reference, flat);
     case Path::reference_barycentric: return rt::build_accel(rt::AccelKind::reference_barycentric, flat);
-    case Path::embree_robust: options.embree_robust = true; return rt::build_accel(rt::AccelKind::embree, flat, options);
+    case Path::embree_robust:
     case Path::embree_default:
-      options.embree_robust = false;
+      options.embree_kernel = rt::EmbreeKernel::native;
+      options.embree_robust = path == Path::embree_robust;
       return rt::build_accel(rt::AccelKind::embree, flat, options);
     case Path::embree_watertight:
-      options.embree_kernel = rt::EmbreeKernel::watertight;
+    case Path::embree_exact:
+      options.embree_kernel = path == Path::embree_watertight ? rt::EmbreeKernel::watertight : rt::EmbreeKernel::exact;
       return rt::build_accel(rt::AccelKind::embree, flat, options);
+    case Path::rt_default: return rt::build_accel(rt::AccelKind::embree, flat, rt::AccelOptions{});
   }
   return nullptr;
 }

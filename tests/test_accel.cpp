@@ -160,7 +160,7 @@ TEST_CASE("every intersector breaks exact ties in t towards the lowest index", "
   const rt::AccelKind kind =
       GENERATE(rt::AccelKind::embree, rt::AccelKind::reference, rt::AccelKind::reference_barycentric);
   const bool robust = GENERATE(true, false);
-  const rt::EmbreeKernel kernel = GENERATE(rt::EmbreeKernel::native, rt::EmbreeKernel::watertight);
+  const rt::EmbreeKernel kernel = GENERATE(rt::EmbreeKernel::native, rt::EmbreeKernel::watertight, rt::EmbreeKernel::exact);
   INFO("accel " << rt::to_string(kind) << ", embree robust " << robust << ", kernel " << rt::to_string(kernel));
   // Three identical triangles compute bit-identical t; more copies spread them over BVH leaves.
   const std::size_t copies = GENERATE(3, 40);
@@ -182,7 +182,7 @@ TEST_CASE("every intersector breaks exact ties in t towards the lowest index", "
 TEST_CASE("intersectors over an empty scene miss everything", "[accel]") {
   const rt::AccelKind kind =
       GENERATE(rt::AccelKind::embree, rt::AccelKind::reference, rt::AccelKind::reference_barycentric);
-  const rt::EmbreeKernel kernel = GENERATE(rt::EmbreeKernel::native, rt::EmbreeKernel::watertight);
+  const rt::EmbreeKernel kernel = GENERATE(rt::EmbreeKernel::native, rt::EmbreeKernel::watertight, rt::EmbreeKernel::exact);
   INFO("accel " << rt::to_string(kind) << ", kernel " << rt::to_string(kernel));
   rt::Scene scene = rt_test::make_scene({});  // a root node without models
   const rt::FlatScene flat = rt::flatten_scene(scene);
@@ -208,8 +208,9 @@ TEST_CASE("accel kind names round-trip", "[accel]") {
   CHECK(rt::parse_embree_quality("high") == rt::EmbreeQuality::high);
   CHECK_THROWS_AS(rt::parse_embree_quality("best"), rt::InputError);
   CHECK(rt::parse_embree_kernel("watertight") == rt::EmbreeKernel::watertight);
+  CHECK(rt::parse_embree_kernel("exact") == rt::EmbreeKernel::exact);
   CHECK(rt::to_string(rt::EmbreeKernel::native) == "native");
-  CHECK_THROWS_AS(rt::parse_embree_kernel("exact"), rt::InputError);
+  CHECK_THROWS_AS(rt::parse_embree_kernel("robust"), rt::InputError);
   CHECK_THROWS_AS(rt::parse_accel_kind("bogus"), rt::InputError);
   CHECK_THROWS_AS(rt::parse_accel_kind(""), rt::InputError);
 }
@@ -285,7 +286,7 @@ TEST_CASE("intersect_coherent and occluded_coherent answer exactly as single ray
   // where three identical triangles hit at the same t: packets must keep the lowest index too.
   // (Non-robust native packets would miss three of the edge rays single rays hit; Embree then
   // traces single rays.)
-  const rt::EmbreeKernel kernel = GENERATE(rt::EmbreeKernel::native, rt::EmbreeKernel::watertight);
+  const rt::EmbreeKernel kernel = GENERATE(rt::EmbreeKernel::native, rt::EmbreeKernel::watertight, rt::EmbreeKernel::exact);
   const bool robust = GENERATE(true, false);
   INFO("kernel " << rt::to_string(kernel) << ", robust " << robust);
   rt::AccelOptions options;

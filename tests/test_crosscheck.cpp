@@ -190,7 +190,7 @@ using ConfigCounts = std::array<Counts, kEmbreeConfigs>;
 ConfigCounts crosscheck(const rt::FlatScene& flat, std::size_t ray_count, std::uint32_t seed) {
   rt::AccelOptions robust_off, watertight;
   robust_off.embree_robust = false;
-  watertight.embree_kernel = rt::EmbreeKernel::watertight;
+  watertight.embree_kernel = rt::EmbreeKernel::exact;
   const std::unique_ptr<rt::Accel> embrees[kEmbreeConfigs] = {
       rt::build_accel(rt::AccelKind::embree, flat), rt::build_accel(rt::AccelKind::embree, flat, robust_off),
       rt::build_accel(rt::AccelKind::embree, flat, watertight)};

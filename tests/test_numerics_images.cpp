@@ -169,7 +169,7 @@ struct RenderConfig {
 const RenderConfig kRenderConfigs[] = {
     {"Embree robust + robust offset (default)", Path::embree_robust, "robust", true},
     {"reference + robust offset", Path::reference, "robust", true},
-    {"Embree + watertight kernel + robust offset", Path::embree_watertight, "robust", true},
+    {"Embree + watertight kernel + robust offset", Path::embree_exact, "robust", true},
     {"Embree robust + fixed:1e-4", Path::embree_robust, "fixed:1e-4", false},
     {"Embree default (robust off) + robust offset", Path::embree_default, "robust", false},
     {"Embree default (robust off) + fixed:1e-4", Path::embree_default, "fixed:1e-4", false},

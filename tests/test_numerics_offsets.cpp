@@ -105,7 +105,7 @@ const SpawnConfig kSpawnConfigs[] = {
     {Path::reference, "robust", true},           {Path::embree_robust, "robust", true},
     {Path::embree_default, "robust", false},     {Path::reference, "fixed:1e-4", false},
     {Path::embree_robust, "fixed:1e-4", false},  {Path::embree_default, "fixed:1e-4", false},
-    {Path::embree_watertight, "robust", true},
+    {Path::embree_exact, "robust", true},
 };
 constexpr std::size_t kConfigCount = std::size(kSpawnConfigs);
 
@@ -170,7 +170,7 @@ AllSpawnCounts reintersect(std::size_t triangle_count, std::size_t rays_per_tria
     std::vector<Vec3d> targets(rays_per_triangle - directions.size());
     for (Vec3d& t : targets) t = Vec3d(log_uniform_point(rng));
 
-    std::unique_ptr<rt::Accel> accels[int(Path::embree_watertight) + 1];  // indexed by Path
+    std::unique_ptr<rt::Accel> accels[int(Path::embree_exact) + 1];  // indexed by Path
     for (std::size_t c = 0; c < kConfigCount; ++c) {
       const SpawnConfig& config = kSpawnConfigs[c];
       SpawnCounts& counts = all.per_config[c];
@@ -332,7 +332,7 @@ TEST_CASE("shadow rays towards a point light lying on a floor are not occluded b
       fan.push_back({light, rim(k), rim(k + 1)});
     }
     const rt::FlatScene flat = flat_soup(fan);
-    for (Path path : {Path::reference, Path::embree_robust, Path::embree_default, Path::embree_watertight}) {
+    for (Path path : {Path::reference, Path::embree_robust, Path::embree_default, Path::embree_exact}) {
       const std::unique_ptr<rt::Accel> accel = build(path, flat);
       std::mt19937 rng(4242u);
       std::uniform_real_distribution<double> unit(0.0, 1.0), exponent(-3.0, std::log10(5.0));
@@ -369,7 +369,7 @@ TEST_CASE("shadow rays towards a point light lying on a floor are not occluded b
       std::cout << "| (" << centre.x << ", " << centre.y << ", " << centre.z << ") | " << name(path) << " | " << rays
                 << " | " << skipped << " | " << occluded << " | " << by_angle[0] << " | " << by_angle[1] << " | "
                 << by_angle[2] << " |\n";
-      if (path == Path::reference || path == Path::embree_watertight) {
+      if (path == Path::reference || path == Path::embree_exact) {
         INFO(name(path) << " at offset " << centre.x);
         CHECK(occluded == 0);
       }

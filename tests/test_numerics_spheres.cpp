@@ -123,7 +123,7 @@ TEST_CASE("Embree and the reference return bit-identical sphere hits", "[spheres
     for (int i = 0; i < 40; ++i) transforms.push_back(random_ellipsoid(rng, placement.offset, placement.scale));
     const rt::FlatScene flat = flat_spheres(transforms);
     rt::AccelOptions watertight;
-    watertight.embree_kernel = rt::EmbreeKernel::watertight;
+    watertight.embree_kernel = rt::EmbreeKernel::exact;
     const auto reference = rt::build_accel(rt::AccelKind::reference, flat);
     const auto native = rt::build_accel(rt::AccelKind::embree, flat);
     const auto exact = rt::build_accel(rt::AccelKind::embree, flat, watertight);

@@ -35,7 +35,7 @@ namespace {
 using namespace rt_numerics;
 
 constexpr Path kAllPaths[] = {Path::reference, Path::embree_robust, Path::embree_default, Path::reference_barycentric,
-                              Path::embree_watertight};
+                              Path::embree_exact};
 constexpr std::size_t kPathCount = std::size(kAllPaths);
 
 // Far-away filler triangles interleaved with the tested ones, so that the tested triangles do not

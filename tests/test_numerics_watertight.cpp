@@ -9,11 +9,13 @@
 //  * Degenerate input: zero-area triangles are never hit and never produce NaN; flatten_scene drops
 //    and counts them and rejects non-finite input.
 //
-// Paths: reference (watertight, double), Embree + watertight kernel (the same test inside Embree's
-// BVH), Embree robust (RTC_SCENE_FLAG_ROBUST, native kernel), Embree default (robust off) and the
-// seed's solve (reference-barycentric). Each case prints Markdown table rows; the watertight paths
-// are asserted everywhere, Embree robust where its kernel holds (not for rays aimed exactly at
-// vertices), the others are printed.
+// Paths: reference (watertight, double), Embree + exact kernel (the same test inside Embree's BVH),
+// Embree + watertight kernel (the float32 watertight test, rt's default), rt's default options
+// (whatever they are, so that the default is asserted watertight), Embree robust
+// (RTC_SCENE_FLAG_ROBUST, native kernel), Embree default (robust off) and the seed's solve
+// (reference-barycentric). Each case prints Markdown table rows; the watertight paths are asserted
+// everywhere, Embree robust where its kernel holds (not for rays aimed exactly at vertices), the
+// others are printed.
 // Regenerate the tables with
 //   build/release/tests/rt_tests "[numerics]~[slow]"    (default suite)
 //   build/release/tests/rt_tests "[numerics][slow]"     (long runs)
@@ -40,12 +42,14 @@ namespace {
 
 using namespace rt_numerics;
 
-constexpr Path kAllPaths[] = {Path::reference, Path::embree_robust, Path::embree_default, Path::reference_barycentric,
-                              Path::embree_watertight};
+constexpr Path kAllPaths[] = {Path::reference,          Path::embree_robust,     Path::embree_default,
+                              Path::reference_barycentric, Path::embree_watertight, Path::embree_exact,
+                              Path::rt_default};
 constexpr std::size_t kPathCount = std::size(kAllPaths);
 
 bool asserted(Path path) {
-  return path == Path::reference || path == Path::embree_robust || path == Path::embree_watertight;
+  return path == Path::reference || path == Path::embree_robust || path == Path::embree_watertight ||
+         path == Path::embree_exact || path == Path::rt_default;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -422,7 +426,7 @@ TEST_CASE("grazing and parallel rays give finite, in-range, stable answers", "[n
     if (!asserted(kAllPaths[p])) continue;
     CHECK(g.occluded_mismatch == 0);
     CHECK(g.parallel_hits == 0);  // a ray parallel to the plane and off it cannot meet the triangle
-    if (kAllPaths[p] == Path::reference || kAllPaths[p] == Path::embree_watertight) {
+    if (kAllPaths[p] == Path::reference || kAllPaths[p] == Path::embree_exact) {
       CHECK(g.in_plane_hits == 0);  // det = 0 exactly: in-plane rays miss
       // Double precision resolves 1e-8 rad: the right answer, to the stated tolerance.
       CHECK(g.grazing_inside_hits == g.grazing_inside);

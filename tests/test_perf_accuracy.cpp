@@ -98,7 +98,7 @@ TEST_CASE("plan_sweep: one knob at a time, everything else at the defaults", "[p
   CHECK(truth.spp == 256);
   CHECK(truth.effects.light_samples == 64);
   CHECK(truth.max_depth == 10);
-  CHECK(truth.accel.embree_kernel == rt::EmbreeKernel::watertight);
+  CHECK(truth.accel.embree_kernel == rt::EmbreeKernel::exact);
   CHECK(truth.sphere_tessellation == 0);
 }
 

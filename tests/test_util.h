@@ -57,7 +57,7 @@ inline rt::Scene make_scene(const std::vector<std::pair<rt::TriangleMesh, std::u
   return scene;
 }
 
-// Every intersector a test can build: Embree's native and watertight kernels and both references.
+// Every intersector a test can build: Embree's three kernels and both references.
 struct Intersector {
   const char* name;
   rt::AccelKind kind;
@@ -73,6 +73,7 @@ struct Intersector {
 inline constexpr Intersector kIntersectors[] = {
     {"embree native", rt::AccelKind::embree, rt::EmbreeKernel::native},
     {"embree watertight", rt::AccelKind::embree, rt::EmbreeKernel::watertight},
+    {"embree exact", rt::AccelKind::embree, rt::EmbreeKernel::exact},
     {"reference", rt::AccelKind::reference, rt::EmbreeKernel::native},
     {"reference barycentric", rt::AccelKind::reference_barycentric, rt::EmbreeKernel::native}};
 

@@ -61,14 +61,15 @@ std::string_view to_string(EmbreeKernel kernel) {
   switch (kernel) {
     case EmbreeKernel::native: return "native";
     case EmbreeKernel::watertight: return "watertight";
+    case EmbreeKernel::exact: return "exact";
   }
   return "?";
 }
 
 EmbreeKernel parse_embree_kernel(std::string_view name) {
-  for (EmbreeKernel kernel : {EmbreeKernel::native, EmbreeKernel::watertight})
+  for (EmbreeKernel kernel : {EmbreeKernel::native, EmbreeKernel::watertight, EmbreeKernel::exact})
     if (name == to_string(kernel)) return kernel;
-  throw InputError("unknown Embree kernel '" + std::string(name) + "' (expected native or watertight)");
+  throw InputError("unknown Embree kernel '" + std::string(name) + "' (expected native, watertight or exact)");
 }
 
 }  // namespace rt

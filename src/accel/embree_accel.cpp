@@ -14,6 +14,7 @@
 #endif
 
 #include "rt/accel/reference_accel.h"
+#include "triangle_clusters.h"
 #include "rt/core/error.h"
 #include "rt/core/memory.h"
 
@@ -185,6 +186,7 @@ class Query {
 struct HitContext {
   QueryContext embree;
   BestHit* best;  // one per ray of the query
+  const ShearedRay* sheared;  // one per ray, for the watertight kernel (null with the others)
 
   BestHit& of(const RTCRayN* ray, unsigned n, unsigned i) const {
     return best[RTCRayN_id(const_cast<RTCRayN*>(ray), n, i)];
@@ -209,6 +211,13 @@ struct UserGeometryData {
   float box_padding = 0.0f;  // world-space units, added on every side of each primitive's box
   const std::uint32_t* triangles = nullptr;  // FlatScene index of each primitive; null: the same index
   const SurfaceTest* test = nullptr;         // set on the geometry of the tested triangles only
+  const TriangleCluster* clusters = nullptr;  // the watertight kernel's primitives, when it runs
+};
+
+// An occlusion query's context: Embree's, and each ray's set-up for the watertight kernel, by id.
+struct ShadowContext {
+  QueryContext embree;
+  const ShearedRay* sheared;
 };
 
 // FlatScene triangle of primitive `prim` of the geometry whose data is `data`.
@@ -380,6 +389,140 @@ void user_occluded(const RTCOccludedFunctionNArguments* args) {
   }
 }
 
+// ---------------------------------------------------------------------------------------------
+// The watertight kernel: clusters of up to eight triangles (the leaves of an Embree SAH build over
+// the triangles), each one user primitive tested by intersect_cluster.
+
+void cluster_bounds(const RTCBoundsFunctionArguments* args) {
+  const TriangleCluster& cluster = static_cast<const UserGeometryData*>(args->geometryUserPtr)->clusters[args->primID];
+  set_bounds(args, cluster.lower, cluster.upper);
+}
+
+Vec3f ray_direction_f(RTCRayN* ray, unsigned n, unsigned i) {
+  return {RTCRayN_dir_x(ray, n, i), RTCRayN_dir_y(ray, n, i), RTCRayN_dir_z(ray, n, i)};
+}
+
+void cluster_intersect(const RTCIntersectFunctionNArguments* args) {
+  const auto* data = static_cast<const UserGeometryData*>(args->geometryUserPtr);
+  const TriangleCluster& cluster = data->clusters[args->primID];
+  auto* context = reinterpret_cast<HitContext*>(args->context);
+  RTCRayN* ray = RTCRayHitN_RayN(args->rayhit, args->N);
+  RTCHitN* hit_out = RTCRayHitN_HitN(args->rayhit, args->N);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] == 0) continue;
+    const Vec3f direction = ray_direction_f(ray, args->N, i);
+    float& tfar = RTCRayN_tfar(ray, args->N, i);
+    ClusterHits hits;
+    unsigned found = intersect_cluster(context->sheared[RTCRayN_id(ray, args->N, i)], cluster,
+                                       RTCRayN_tnear(ray, args->N, i), tfar, hits);
+    if (found == 0) continue;
+    BestHit& best = context->of(ray, args->N, i);
+    bool improved = false;
+    for (; found != 0; found &= found - 1) {
+      const unsigned l = unsigned(__builtin_ctz(found));
+      const unsigned prim = cluster.triangle[l];
+      if (data->test && !surface_counts<false>(data, prim, hits.b1[l], hits.b2[l], Vec3d(direction))) continue;
+      improved |= best.offer(hits.t[l], prim, hits.b1[l], hits.b2[l]);
+    }
+    if (!improved) continue;
+    tfar = widened(best.t);
+    RTCHitN_geomID(hit_out, args->N, i) = args->geomID;
+    RTCHitN_primID(hit_out, args->N, i) = args->primID;
+    RTCHitN_instID(hit_out, args->N, i, 0) = args->context->instID[0];
+    RTCHitN_u(hit_out, args->N, i) = static_cast<float>(best.b1);
+    RTCHitN_v(hit_out, args->N, i) = static_cast<float>(best.b2);
+  }
+}
+
+void cluster_occluded(const RTCOccludedFunctionNArguments* args) {
+  const auto* data = static_cast<const UserGeometryData*>(args->geometryUserPtr);
+  const TriangleCluster& cluster = data->clusters[args->primID];
+  const ShearedRay* sheared = reinterpret_cast<const ShadowContext*>(args->context)->sheared;
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] == 0) continue;
+    const Vec3f direction = ray_direction_f(args->ray, args->N, i);
+    float& tfar = RTCRayN_tfar(args->ray, args->N, i);
+    ClusterHits hits;
+    unsigned found = intersect_cluster(sheared[RTCRayN_id(args->ray, args->N, i)], cluster,
+                                       RTCRayN_tnear(args->ray, args->N, i), tfar, hits);
+    for (; found != 0; found &= found - 1) {
+      const unsigned l = unsigned(__builtin_ctz(found));
+      if (!data->test || surface_counts<true>(data, cluster.triangle[l], hits.b1[l], hits.b2[l], Vec3d(direction))) {
+        tfar = -kInfinity;
+        break;
+      }
+    }
+  }
+}
+
+// Collects the leaves of an rtcBuildBVH run as clusters; the inner nodes are not needed.
+struct ClusterBuild {
+  const FlatScene* flat;
+  std::mutex mutex;
+  std::vector<TriangleCluster> clusters;
+};
+
+char unused_node;
+
+void* create_cluster_node(RTCThreadLocalAllocator, unsigned, void*) { return &unused_node; }
+void set_cluster_node_children(void*, void**, unsigned, void*) {}
+void set_cluster_node_bounds(void*, const RTCBounds**, unsigned, void*) {}
+
+void* create_cluster_leaf(RTCThreadLocalAllocator, const RTCBuildPrimitive* primitives, size_t count, void* user) {
+  auto* build = static_cast<ClusterBuild*>(user);
+  for (size_t first = 0; first < count; first += kClusterWidth) {
+    const auto n = static_cast<unsigned>(std::min<size_t>(kClusterWidth, count - first));
+    std::uint32_t triangles[kClusterWidth];
+    for (unsigned i = 0; i < n; ++i) triangles[i] = primitives[first + i].primID;
+    const TriangleCluster cluster = make_cluster(*build->flat, triangles, n);
+    std::lock_guard lock(build->mutex);
+    build->clusters.push_back(cluster);
+  }
+  return &unused_node;
+}
+
+// The clusters of `triangles` (FlatScene numbers; `index` null: 0, 1, ...), degenerate triangles
+// left out: the leaves of a binned SAH build whose leaf cost is that of one cluster test, whatever
+// the leaf holds up to eight triangles (sahBlockSize 8).
+std::vector<TriangleCluster> build_clusters(RTCDevice device, const FlatScene& flat, std::size_t count,
+                                            const std::uint32_t* index) {
+  std::vector<RTCBuildPrimitive> primitives;
+  primitives.reserve(count);
+  for (std::size_t i = 0; i < count; ++i) {
+    const auto t = static_cast<std::uint32_t>(index ? index[i] : i);
+    if (is_degenerate(flat, t)) continue;
+    const Vec3u tri = flat.triangles[t];
+    const Vec3f a = flat.positions[tri.x], b = flat.positions[tri.y], c = flat.positions[tri.z];
+    const Vec3f lo = glm::min(a, glm::min(b, c)), hi = glm::max(a, glm::max(b, c));
+    primitives.push_back(RTCBuildPrimitive{lo.x, lo.y, lo.z, 0, hi.x, hi.y, hi.z, t});
+  }
+  ClusterBuild build{&flat, {}, {}};
+  if (primitives.empty()) return {};
+  build.clusters.reserve(primitives.size() / 4);
+  RTCBVH bvh = rtcNewBVH(device);
+  RTCBuildArguments arguments = rtcDefaultBuildArguments();
+  arguments.byteSize = sizeof(arguments);
+  arguments.buildQuality = RTC_BUILD_QUALITY_MEDIUM;
+  arguments.maxBranchingFactor = 2;
+  arguments.minLeafSize = 1;
+  arguments.maxLeafSize = kClusterWidth;
+  arguments.sahBlockSize = kClusterWidth;
+  arguments.traversalCost = 1.0f;
+  arguments.intersectionCost = 1.0f;
+  arguments.bvh = bvh;
+  arguments.primitives = primitives.data();
+  arguments.primitiveCount = primitives.size();
+  arguments.primitiveArrayCapacity = primitives.capacity();
+  arguments.createNode = &create_cluster_node;
+  arguments.setNodeChildren = &set_cluster_node_children;
+  arguments.setNodeBounds = &set_cluster_node_bounds;
+  arguments.createLeaf = &create_cluster_leaf;
+  arguments.userPtr = &build;
+  rtcBuildBVH(&arguments);
+  rtcReleaseBVH(bvh);
+  return std::move(build.clusters);
+}
+
 }  // namespace
 
 std::string_view embree_version() { return RTC_VERSION_STRING; }
@@ -463,6 +606,8 @@ struct EmbreeAccel::Impl {
   std::vector<Vec3u> untested_triangles, tested_triangles;
   std::vector<std::uint32_t> untested_index, tested_index;
   const SurfaceTest* test = nullptr;   // null unless some triangle is tested
+  std::vector<TriangleCluster> clusters, tested_clusters;  // the watertight kernel's
+  bool shear = false;  // queries set up ShearedRays (the watertight kernel)
   RTCFilterFunctionN context_filter = &order_hits<false>;
   bool use_packets = true;     // the *_coherent queries trace packets (see intersect_coherent)
 
@@ -530,7 +675,7 @@ EmbreeAccel::EmbreeAccel(const FlatScene& flat, const AccelOptions& options) : i
   rtcSetSceneBuildQuality(impl_->scene, to_embree(options.embree_quality));
   const float padding = user_box_padding(flat);
   impl_->triangle_data = impl_->tested_data = impl_->sphere_data = {&flat, padding, nullptr, nullptr};
-  impl_->use_packets = (options.embree_robust || options.embree_kernel == EmbreeKernel::watertight) && !compact;
+  impl_->use_packets = (options.embree_robust || options.embree_kernel != EmbreeKernel::native) && !compact;
   impl_->split_by_test(flat, options.surface_test);
   // The triangles of one geometry: all of them (none tested: FlatScene's buffers, shared), or the
   // untested or tested ones (own index buffers, FlatScene numbers in data.triangles).
@@ -550,6 +695,18 @@ EmbreeAccel::EmbreeAccel(const FlatScene& flat, const AccelOptions& options) : i
         rtcSetGeometryIntersectFilterFunction(geometry, &surface_filter<false>);
         rtcSetGeometryOccludedFilterFunction(geometry, &surface_filter<true>);
       }
+    } else if (options.embree_kernel == EmbreeKernel::watertight) {
+      std::vector<TriangleCluster>& clusters = id == kTestedGeometry ? impl_->tested_clusters : impl_->clusters;
+      clusters = build_clusters(device, flat, triangles.size(), data.triangles);
+      if (clusters.empty()) return;
+      data.clusters = clusters.data();
+      impl_->shear = true;
+      geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
+      rtcSetGeometryUserPrimitiveCount(geometry, static_cast<unsigned>(clusters.size()));
+      rtcSetGeometryUserData(geometry, &data);
+      rtcSetGeometryBoundsFunction(geometry, &cluster_bounds, nullptr);
+      rtcSetGeometryIntersectFunction(geometry, &cluster_intersect);
+      rtcSetGeometryOccludedFunction(geometry, &cluster_occluded);
     } else {
       geometry = id == kTestedGeometry ? impl_->new_user_geometry<kTestedGeometry>(triangles.size(), &triangle_bounds, data)
                                       : impl_->new_user_geometry<kTriangleGeometry>(triangles.size(), &triangle_bounds, data);
@@ -591,7 +748,8 @@ Hit to_hit(const BestHit& best) {
 
 Hit EmbreeAccel::intersect(const Ray& ray) const {
   BestHit best = no_hit_yet(ray);
-  HitContext context{{}, &best};
+  const ShearedRay sheared = impl_->shear ? shear_ray(ray.origin, ray.direction) : ShearedRay{};
+  HitContext context{{}, &best, &sheared};
   Query query(context.embree, impl_->context_filter, false);
   RTCRayHit rayhit;
   fill_ray(ray, rayhit.ray);
@@ -615,7 +773,8 @@ void EmbreeAccel::intersect_coherent(std::span<const Ray> rays, std::span<Hit> h
   for (std::size_t first = 0; first < rays.size(); first += kPacketSize) {
     const auto lanes = static_cast<unsigned>(std::min<std::size_t>(kPacketSize, rays.size() - first));
     BestHit best[kPacketSize];
-    HitContext context{{}, best};
+    ShearedRay sheared[kPacketSize];
+    HitContext context{{}, best, sheared};
     Query query(context.embree, impl_->context_filter, true);
     alignas(64) RTCRayHit16 packet;
     alignas(64) int valid[kPacketSize];
@@ -624,6 +783,7 @@ void EmbreeAccel::intersect_coherent(std::span<const Ray> rays, std::span<Hit> h
       valid[i] = active ? -1 : 0;
       const Ray& ray = rays[first + (active ? i : 0)];
       best[i] = no_hit_yet(ray);
+      if (impl_->shear) sheared[i] = shear_ray(ray.origin, ray.direction);
       fill_packet_lane(ray, i, packet.ray);
       packet.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
       packet.hit.primID[i] = RTC_INVALID_GEOMETRY_ID;
@@ -639,15 +799,18 @@ void EmbreeAccel::occluded_coherent(std::span<const Ray> rays, std::span<std::ui
     Accel::occluded_coherent(rays, blocked);
     return;
   }
-  QueryContext context;
-  Query query(context, nullptr, true);
+  ShearedRay sheared[kPacketSize];
+  ShadowContext context{{}, sheared};
+  Query query(context.embree, nullptr, true);
   for (std::size_t first = 0; first < rays.size(); first += kPacketSize) {
     const auto lanes = static_cast<unsigned>(std::min<std::size_t>(kPacketSize, rays.size() - first));
     alignas(64) RTCRay16 packet;
     alignas(64) int valid[kPacketSize];
     for (unsigned i = 0; i < kPacketSize; ++i) {
       valid[i] = i < lanes ? -1 : 0;
-      fill_packet_lane(rays[first + (i < lanes ? i : 0)], i, packet);
+      const Ray& ray = rays[first + (i < lanes ? i : 0)];
+      if (impl_->shear) sheared[i] = shear_ray(ray.origin, ray.direction);
+      fill_packet_lane(ray, i, packet);
     }
     query.occluded(valid, impl_->scene, packet);
     for (unsigned i = 0; i < lanes; ++i) blocked[first + i] = packet.tfar[i] == -kInfinity ? 1 : 0;
@@ -655,8 +818,9 @@ void EmbreeAccel::occluded_coherent(std::span<const Ray> rays, std::span<std::ui
 }
 
 bool EmbreeAccel::occluded(const Ray& ray) const {
-  QueryContext context;
-  Query query(context, nullptr, false);
+  const ShearedRay sheared = impl_->shear ? shear_ray(ray.origin, ray.direction) : ShearedRay{};
+  ShadowContext context{{}, &sheared};
+  Query query(context.embree, nullptr, false);
   RTCRay embree_ray;
   fill_ray(ray, embree_ray);
   query.occluded(impl_->scene, embree_ray);

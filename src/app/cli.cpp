@@ -177,9 +177,10 @@ int run_cli(int argc, char** argv) {
         ->check(one_of({"low", "medium", "high"}))
         ->capture_default_str();
     command->add_option("--embree-kernel", args.embree_kernel,
-                        "Triangle test inside Embree's BVH: native (Embree's, fastest) or watertight (the reference's "
-                        "double-precision watertight test: no ray slips through a closed mesh, slower)")
-        ->check(one_of({"native", "watertight"}))
+                        "Triangle test inside Embree's BVH: watertight (float32, no ray slips through a closed mesh), "
+                        "native (Embree's own: rays aimed at vertices can slip through) or exact (the reference's "
+                        "double-precision test: hits equal the reference's, slower)")
+        ->check(one_of({"watertight", "native", "exact"}))
         ->capture_default_str();
     command->add_option("--sphere-tessellation", args.sphere_tessellation,
                         "Spheres: 0 = exact quadrics, N >= 3 = UV spheres of N slices and N/2 stacks (for comparison)")

@@ -35,7 +35,7 @@ struct RenderArgs {
   std::string accel = "embree";
   std::string embree_robust = "on";
   std::string embree_quality = "medium";
-  std::string embree_kernel = "native";
+  std::string embree_kernel = "watertight";
   int sphere_tessellation = 0;
   std::string ray_offset = "robust";
   int threads = 0;

@@ -229,7 +229,7 @@ RenderConfig truth_config(int scene_depth, int truth_depth, int spp, int light_s
   config.effects.light_samples = light_samples;
   config.accel.embree_robust = true;
   config.accel.embree_quality = EmbreeQuality::high;
-  config.accel.embree_kernel = EmbreeKernel::watertight;
+  config.accel.embree_kernel = EmbreeKernel::exact;
   return config;
 }
 
@@ -274,7 +274,7 @@ std::vector<SweepPoint> plan_sweep(const std::vector<std::string>& knobs, int sc
       for (EmbreeQuality q : {EmbreeQuality::low, EmbreeQuality::medium, EmbreeQuality::high})
         c.accel.embree_quality = q, add(knob, std::string(to_string(q)), c);
     } else if (knob == "embree_kernel") {
-      for (EmbreeKernel k : {EmbreeKernel::native, EmbreeKernel::watertight})
+      for (EmbreeKernel k : {EmbreeKernel::watertight, EmbreeKernel::native, EmbreeKernel::exact})
         c.accel.embree_kernel = k, add(knob, std::string(to_string(k)), c);
     } else if (knob == "ray_offset") {
       for (const std::string& offset : kRayOffsets) c.ray_offset = parse_ray_offset(offset), add(knob, offset, c);

@@ -49,12 +49,14 @@ enum class AccelKind { embree, reference, reference_barycentric };
 enum class EmbreeQuality { low, medium, high };
 
 // Which ray/triangle test runs inside Embree's BVH. native: Embree's own triangle intersector
-// (Pluecker in robust mode, Moller-Trumbore otherwise), float32. watertight: the reference's
-// double-precision watertight test (intersect_triangle_watertight) as an Embree user geometry, so
-// the Embree path returns exactly what the reference returns, at the price of speed (measured in
-// docs/performance.md). Embree's native kernels can let a ray aimed exactly at a vertex slip
-// through a closed mesh even in robust mode (docs/robustness.md).
-enum class EmbreeKernel { native, watertight };
+// (Pluecker in robust mode, Moller-Trumbore otherwise), float32; even in robust mode it can let a
+// ray aimed exactly at a vertex slip through a closed mesh (docs/robustness.md). watertight: the
+// watertight test of Woop et al. (2013) in float32, eight triangles at a time, with an exact
+// recomputation of edge functions that round to zero: no ray slips through a closed mesh, edges
+// and vertices included. exact: the reference's double-precision watertight test
+// (intersect_triangle_watertight) as an Embree user geometry, so the Embree path returns exactly
+// what the reference returns, at the price of speed (docs/performance.md).
+enum class EmbreeKernel { native, watertight, exact };
 
 // Options for building an Accel; the reference backends ignore the Embree ones.
 class EmbreeDevice;  // rt/accel/embree_accel.h
@@ -90,7 +92,7 @@ struct AccelOptions {
   // docs/robustness.md for the measurements that chose this default).
   bool embree_robust = true;
   EmbreeQuality embree_quality = EmbreeQuality::medium;  // BVH build quality (RTCBuildQuality)
-  EmbreeKernel embree_kernel = EmbreeKernel::native;
+  EmbreeKernel embree_kernel = EmbreeKernel::watertight;
   // RTC_SCENE_FLAG_COMPACT from this many triangles on: BVH leaves index the shared vertex buffer
   // instead of copying vertices. On a 10M-triangle mesh it cut peak memory by 40 B/triangle and the
   // build time by half; on the 202k-triangle dragon it traced ~10% slower. The hits are the same

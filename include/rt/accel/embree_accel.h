@@ -31,8 +31,10 @@ class EmbreeDevice {
 
 // An RTCDevice and one RTCScene holding a single geometry over `scene`'s triangles. With the
 // native kernel it is an Embree triangle geometry sharing FlatScene's vertex and index buffers (no
-// copies); with the watertight kernel it is a user geometry whose callbacks run the reference's
-// double-precision watertight test on the same vertices, so hits equal the reference's exactly.
+// copies); with the watertight kernel (the default) a user geometry of clusters of up to eight
+// triangles (float32 copies of their vertices, about 42 bytes per triangle) tested eight at a time;
+// with the exact kernel a user geometry whose callbacks run the reference's double-precision
+// watertight test on FlatScene's vertices, so hits equal the reference's exactly.
 // Closest hit via rtcIntersect1, shadows via rtcOccluded1. Embree's error callback only records;
 // the constructor throws RuntimeError with the recorded message if device creation or the BVH
 // build failed.
@@ -60,7 +62,7 @@ class EmbreeAccel final : public Accel {
   // Bytes Embree's device holds now (net of frees; the BVH, builder arenas and device state),
   // counted by a memory monitor callback (rtcSetDeviceMemoryMonitorFunction) from device creation
   // on (a shared device: from this accel's creation on). FlatScene's vertex and index buffers are
-  // shared, not copied, and are not included.
+  // shared, not copied, and are not included; nor, for now, the watertight kernel's clusters.
   std::size_t memory_bytes() const;
 
  private:
