@@ -398,10 +398,6 @@ void cluster_bounds(const RTCBoundsFunctionArguments* args) {
   set_bounds(args, cluster.lower, cluster.upper);
 }
 
-Vec3f ray_direction_f(RTCRayN* ray, unsigned n, unsigned i) {
-  return {RTCRayN_dir_x(ray, n, i), RTCRayN_dir_y(ray, n, i), RTCRayN_dir_z(ray, n, i)};
-}
-
 void cluster_intersect(const RTCIntersectFunctionNArguments* args) {
   const auto* data = static_cast<const UserGeometryData*>(args->geometryUserPtr);
   const TriangleCluster& cluster = data->clusters[args->primID];
@@ -410,7 +406,6 @@ void cluster_intersect(const RTCIntersectFunctionNArguments* args) {
   RTCHitN* hit_out = RTCRayHitN_HitN(args->rayhit, args->N);
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] == 0) continue;
-    const Vec3f direction = ray_direction_f(ray, args->N, i);
     float& tfar = RTCRayN_tfar(ray, args->N, i);
     ClusterHits hits;
     unsigned found = intersect_cluster(context->sheared[RTCRayN_id(ray, args->N, i)], cluster,
@@ -421,7 +416,8 @@ void cluster_intersect(const RTCIntersectFunctionNArguments* args) {
     for (; found != 0; found &= found - 1) {
       const unsigned l = unsigned(__builtin_ctz(found));
       const unsigned prim = cluster.triangle[l];
-      if (data->test && !surface_counts<false>(data, prim, hits.b1[l], hits.b2[l], Vec3d(direction))) continue;
+      if (data->test && !surface_counts<false>(data, prim, hits.b1[l], hits.b2[l], ray_direction(ray, args->N, i)))
+        continue;
       improved |= best.offer(hits.t[l], prim, hits.b1[l], hits.b2[l]);
     }
     if (!improved) continue;
@@ -440,14 +436,14 @@ void cluster_occluded(const RTCOccludedFunctionNArguments* args) {
   const ShearedRay* sheared = reinterpret_cast<const ShadowContext*>(args->context)->sheared;
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] == 0) continue;
-    const Vec3f direction = ray_direction_f(args->ray, args->N, i);
     float& tfar = RTCRayN_tfar(args->ray, args->N, i);
     ClusterHits hits;
     unsigned found = intersect_cluster(sheared[RTCRayN_id(args->ray, args->N, i)], cluster,
                                        RTCRayN_tnear(args->ray, args->N, i), tfar, hits);
     for (; found != 0; found &= found - 1) {
       const unsigned l = unsigned(__builtin_ctz(found));
-      if (!data->test || surface_counts<true>(data, cluster.triangle[l], hits.b1[l], hits.b2[l], Vec3d(direction))) {
+      if (!data->test || surface_counts<true>(data, cluster.triangle[l], hits.b1[l], hits.b2[l],
+                                                  ray_direction(args->ray, args->N, i))) {
         tfar = -kInfinity;
         break;
       }
