@@ -7,19 +7,18 @@ namespace rt {
 
 namespace {
 
-// Eight float32 lanes (GCC/Clang vector extension: one AVX register, or two SSE ones).
+// Eight float32 lanes (GCC/Clang vector extension: one AVX register, or two SSE ones). Helpers take
+// and return them by reference only: a 32-byte vector passed by value changes the ABI between the
+// AVX2 and baseline clones, which Clang rejects outright.
 using Lanes = float __attribute__((vector_size(32)));
 using Mask = int __attribute__((vector_size(32)));
 
-[[gnu::always_inline]] inline Lanes load(const float* p) {
-  Lanes v;
-  std::memcpy(&v, p, sizeof v);
-  return v;
+[[gnu::always_inline]] inline void load(Lanes& out, const float (&p)[kClusterWidth]) {
+  static_assert(sizeof out == sizeof p);
+  std::memcpy(&out, p, sizeof out);
 }
 
-[[gnu::always_inline]] inline Lanes splat(float x) { return Lanes{} + x; }
-
-[[gnu::always_inline]] inline unsigned bits(Mask m) {
+[[gnu::always_inline]] inline unsigned bits(const Mask& m) {
   unsigned out = 0;
   for (unsigned l = 0; l < kClusterWidth; ++l) out |= (m[l] != 0 ? 1u : 0u) << l;
   return out;
@@ -97,14 +96,19 @@ unsigned intersect_cluster(const ShearedRay& ray, const TriangleCluster& cluster
                            ClusterHits& hits) {
   if (!ray.valid) return 0;
   const int kx = ray.kx, ky = ray.ky, kz = ray.kz;
-  const Lanes ox = splat(ray.origin[kx]), oy = splat(ray.origin[ky]), oz = splat(ray.origin[kz]);
-  const Lanes sx = splat(ray.sx), sy = splat(ray.sy), sz = splat(ray.sz);
+  // Lanes{} + x broadcasts x to every lane.
+  const Lanes ox = Lanes{} + ray.origin[kx], oy = Lanes{} + ray.origin[ky], oz = Lanes{} + ray.origin[kz];
+  const Lanes sx = Lanes{} + ray.sx, sy = Lanes{} + ray.sy, sz = Lanes{} + ray.sz;
   // Step 1 and 2 of the reference: vertex minus origin (float32, once per vertex), permuted, sheared.
   Lanes qx[3], qy[3], qz[3];
   for (int k = 0; k < 3; ++k) {
-    const Lanes z = load(cluster.v[k][kz]) - oz;
-    qx[k] = (load(cluster.v[k][kx]) - ox) + sx * z;
-    qy[k] = (load(cluster.v[k][ky]) - oy) + sy * z;
+    Lanes vx, vy, vz;
+    load(vx, cluster.v[k][kx]);
+    load(vy, cluster.v[k][ky]);
+    load(vz, cluster.v[k][kz]);
+    const Lanes z = vz - oz;
+    qx[k] = (vx - ox) + sx * z;
+    qy[k] = (vy - oy) + sy * z;
     qz[k] = sz * z;
   }
   // Step 3: edge functions, each from its edge's two vertices only.
@@ -116,18 +120,20 @@ unsigned intersect_cluster(const ShearedRay& ray, const TriangleCluster& cluster
   const Mask positive = (e0 > zero) | (e1 > zero) | (e2 > zero);
   const Mask rounded_to_zero = (e0 == zero) | (e1 == zero) | (e2 == zero);
   const unsigned in_use = (1u << cluster.count) - 1u;
-  const unsigned inside = bits(~(negative & positive) & ~rounded_to_zero) & in_use;
+  const Mask agree = ~(negative & positive) & ~rounded_to_zero;
+  const unsigned inside = bits(agree) & in_use;
   const unsigned exact = bits(rounded_to_zero) & in_use;
   if ((inside | exact) == 0) return 0;  // most clusters a ray reaches: no division needed
   unsigned found = 0;
   if (inside != 0) {
     // Steps 4 and 5: t and the barycentrics, for the lanes whose edge functions agree.
     const Lanes det = e0 + e1 + e2;
-    const Lanes inv_det = splat(1.0f) / det;
+    const Lanes inv_det = (Lanes{} + 1.0f) / det;
     const Lanes t = (e0 * qz[0] + e1 * qz[1] + e2 * qz[2]) * inv_det;
     // det finite and non-zero, and not so small that 1 / det overflows (x - x is NaN for inf and NaN).
     const Mask finite = ((det - det) == zero) & ((inv_det - inv_det) == zero);
-    found = inside & bits((det != zero) & finite & (t >= splat(tnear)) & (t <= splat(tfar)));
+    const Mask accepted = (det != zero) & finite & (t >= (Lanes{} + tnear)) & (t <= (Lanes{} + tfar));
+    found = inside & bits(accepted);
     const Lanes b1 = e1 * inv_det, b2 = e2 * inv_det;
     for (unsigned lanes = found; lanes != 0; lanes &= lanes - 1) {
       const unsigned l = unsigned(__builtin_ctz(lanes));
