@@ -76,11 +76,13 @@ int run_retrace(const RetraceArgs& args) {
   const RecordingAccel::Queries queries = recorder.queries();
   std::uint64_t render_hits = 0;
   for (const std::uint64_t h : recorded.rays.hits_per_depth) render_hits += h;
-  if (queries.coherent.size() + queries.closest.size() != recorded.rays.camera + recorded.rays.reflection + recorded.rays.refraction + recorded.rays.see_through ||
-      queries.shadow_total() != recorded.rays.shadow)
+  const RayCounts& rays = recorded.rays;
+  const std::uint64_t closest = rays.camera + rays.reflection + rays.refraction + rays.see_through;
+  const std::uint64_t shadow = rays.shadow + rays.area_light;  // point-light and area-light shadow rays
+  if (queries.coherent.size() + queries.closest.size() != closest || queries.shadow_total() != shadow)
     throw RuntimeError(fmt::format("recorded {} closest-hit and {} shadow queries, the render counted {} and {}",
-                                   queries.coherent.size() + queries.closest.size(), queries.shadow_total(),
-                                   recorded.rays.camera + recorded.rays.reflection + recorded.rays.refraction + recorded.rays.see_through, recorded.rays.shadow));
+                                   queries.coherent.size() + queries.closest.size(), queries.shadow_total(), closest,
+                                   shadow));
 
   std::vector<double> render_s, retrace_s, ratios, coherent_s, closest_s, shadow_s;
   RetraceCounts counts;
