@@ -728,7 +728,9 @@ const SurfaceTest* EmbreeAccel::surface_test() const { return impl_->test; }
 
 std::size_t EmbreeAccel::memory_bytes() const {
   const std::int64_t bytes = impl_->device->memory_bytes.load(std::memory_order_relaxed) - impl_->baseline_bytes;
-  return static_cast<std::size_t>(std::max<std::int64_t>(bytes, 0));
+  const std::size_t cluster_bytes =
+      (impl_->clusters.size() + impl_->tested_clusters.size()) * sizeof(TriangleCluster);
+  return static_cast<std::size_t>(std::max<std::int64_t>(bytes, 0)) + cluster_bytes;
 }
 
 namespace {

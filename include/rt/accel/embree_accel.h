@@ -61,8 +61,9 @@ class EmbreeAccel final : public Accel {
 
   // Bytes Embree's device holds now (net of frees; the BVH, builder arenas and device state),
   // counted by a memory monitor callback (rtcSetDeviceMemoryMonitorFunction) from device creation
-  // on (a shared device: from this accel's creation on). FlatScene's vertex and index buffers are
-  // shared, not copied, and are not included; nor, for now, the watertight kernel's clusters.
+  // on (a shared device: from this accel's creation on), plus the watertight kernel's clusters
+  // (copies of their triangles' vertices). FlatScene's vertex and index buffers are shared, not
+  // copied, and are not included.
   std::size_t memory_bytes() const;
 
  private:
