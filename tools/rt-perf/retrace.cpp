@@ -79,10 +79,10 @@ int run_retrace(const RetraceArgs& args) {
   const RayCounts& rays = recorded.rays;
   const std::uint64_t closest = rays.camera + rays.reflection + rays.refraction + rays.see_through;
   const std::uint64_t shadow = rays.shadow + rays.area_light;  // point-light and area-light shadow rays
-  if (queries.coherent.size() + queries.closest.size() != closest || queries.shadow_total() != shadow)
+  const std::uint64_t recorded_closest = queries.coherent.size() + queries.closest.size();
+  if (recorded_closest != closest || queries.shadow_total() != shadow)
     throw RuntimeError(fmt::format("recorded {} closest-hit and {} shadow queries, the render counted {} and {}",
-                                   queries.coherent.size() + queries.closest.size(), queries.shadow_total(), closest,
-                                   shadow));
+                                   recorded_closest, queries.shadow_total(), closest, shadow));
 
   std::vector<double> render_s, retrace_s, ratios, coherent_s, closest_s, shadow_s;
   RetraceCounts counts;
