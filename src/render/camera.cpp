@@ -38,6 +38,18 @@ Ray ray_through_pixel(const CameraFrame& frame, int i, int j) {
   return ray_through_pixel_sample(frame, i, j, 0, 1);
 }
 
+PixelCentreRays::PixelCentreRays(const CameraFrame& frame) : eye_(frame.eye), w_(frame.w) {
+  // As camera_direction at x = i + 0.5, y = j + 0.5, term by term.
+  for (int i = 0; i < frame.width; ++i) {
+    const double alpha = 2.0 * (i + 0.5) / frame.width - 1.0;
+    across_.push_back(alpha * frame.aspect * frame.tan_half_fovy * frame.u);
+  }
+  for (int j = 0; j < frame.height; ++j) {
+    const double beta = 1.0 - 2.0 * (j + 0.5) / frame.height;
+    down_.push_back(beta * frame.tan_half_fovy * frame.v);
+  }
+}
+
 Vec2d pixel_sample_offset(int i, int j, int index, int count) {
   if (count <= 1) return Vec2d(0.5);
   int columns = 1;

@@ -1,6 +1,8 @@
 #include "rt/render/ray_offset.h"
 
 #include <algorithm>
+#include <bit>
+#include <cstdint>
 #include <cmath>
 #include <cstdlib>
 
@@ -21,14 +23,23 @@ constexpr double kSafety = 8.0;
 
 double max_abs_component(const Vec3d& v) { return std::max({std::abs(v.x), std::abs(v.y), std::abs(v.z)}); }
 
+// std::nextafter(f, +inf) (up) or std::nextafter(f, -inf), for f not NaN and not the infinity it
+// steps towards, on the bits: the float32 ordering of non-negative values is their integers' and
+// of negative ones the reverse, and from either zero the next is the smallest subnormal.
+float next_float(float f, bool up) {
+  if (f == 0.0f) return up ? 0x1p-149f : -0x1p-149f;
+  const std::uint32_t bits = std::bit_cast<std::uint32_t>(f);
+  return std::bit_cast<float>((f > 0.0f) == up ? bits + 1 : bits - 1);
+}
+
 // Rounds each component of `p` to float32, and when rounding moved it against `away` (towards the
 // surface), steps one float further along `away`: the offset survives the conversion.
 Vec3f round_away(const Vec3d& p, const Vec3d& away) {
   Vec3f result;
   for (int i = 0; i < 3; ++i) {
     float f = static_cast<float>(p[i]);
-    if (away[i] > 0.0 && double(f) < p[i]) f = std::nextafter(f, kInfinity);
-    if (away[i] < 0.0 && double(f) > p[i]) f = std::nextafter(f, -kInfinity);
+    if (away[i] > 0.0 && double(f) < p[i]) f = next_float(f, true);
+    if (away[i] < 0.0 && double(f) > p[i]) f = next_float(f, false);
     result[i] = f;
   }
   return result;

@@ -23,6 +23,7 @@
 #include "rt/core/error.h"
 #include "rt/core/memory.h"
 #include "rt/render/camera.h"
+#include "batch_shade.h"
 
 namespace rt {
 
@@ -83,6 +84,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   const int width = scene.settings.width;
   const PixelRegion region = checked_region(scene, options.region);
   const CameraFrame frame = make_camera_frame(scene.camera, width, scene.settings.height, scene.source);
+  const PixelCentreRays centre_rays(frame);
   const TextureSampler textures(scene, options.texture_cache_bytes);
   RenderResult result;
   result.textures = textures.use();
@@ -108,6 +110,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
     std::vector<std::uint8_t> blocked, grouped_blocked;
     std::vector<std::uint32_t> by_light;
     std::vector<Ray> grouped_rays;
+    BatchShader::Workspace batch;
     std::uint64_t non_finite = 0;
     std::uint64_t first_non_finite = ~std::uint64_t(0);  // row-major pixel index
   };
@@ -135,6 +138,8 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   const std::size_t light_count = scene.lights.size();
   const std::size_t slot_count = light_count + result.plan.emitters.size();
   const bool sampled_lights = result.plan.area_lights != nullptr;  // the only reader of the path seed
+  const BatchShader batch(context);
+  const bool batching = options.batch_shading && batch.enabled();
   const auto render_block = [&](int bx0, int by0, int bx1, int by1, ThreadState& state) {
     RayCounts& counts = state.counts;
     PendingShading& pending = state.pending;
@@ -157,7 +162,10 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
     const int end_sample = one_sample ? options.sample_index + 1 : spp;
     for (int s = first_sample; s < end_sample; ++s) {
       for (int k = 0; k < n; ++k)
-        rays[k] = spp == 1 ? ray_through_pixel(frame, xs[k], ys[k]) : ray_through_pixel_sample(frame, xs[k], ys[k], s, spp);
+        if (spp == 1)
+          centre_rays.set_ray(rays[k], xs[k], ys[k]);
+        else
+          rays[k] = ray_through_pixel_sample(frame, xs[k], ys[k], s, spp);
       std::uint64_t start = options.time_queries ? __rdtsc() : 0;
       accel.intersect_coherent(std::span(rays.data(), std::size_t(n)), std::span(hits.data(), std::size_t(n)));
       if (options.time_queries) {
@@ -171,12 +179,24 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
       }
 
       pending.clear();
+      if (batching)  // the timed pixels are left to shade_camera_hit, which times them
+        batch.prepare(std::span(rays.data(), std::size_t(n)), std::span(hits.data(), std::size_t(n)),
+                      std::span(timed.data(), std::size_t(n)), state.batch);
       for (int k = 0; k < n; ++k) {
+        if (batching && state.batch.lane_of[std::size_t(k)] >= 0) {
+          batch.finish_camera_hit(state.batch, k, rays[std::size_t(k)], hits[std::size_t(k)], counts, pending);
+          continue;
+        }
+        if (batching && !timed[k] && !hits[k].found()) {
+          batch.add_miss(pending);
+          continue;
+        }
         if (timed[k]) start = __rdtsc();
         shade_camera_hit(timed[k] ? timed_context : context, rays[k], hits[k],
                          sampled_lights ? pixel_path_seed(xs[k], ys[k], s) : 0, counts, pending);
         if (timed[k]) ticks[k] += __rdtsc() - start;
       }
+      if (batching) batch.trace_reflections(state.batch, counts, pending);
 
       // Shadow rays light by light, so that a packet goes towards one light (a single light: as recorded).
       const std::size_t shadow_count = pending.shadow_rays.size();

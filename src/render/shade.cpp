@@ -14,6 +14,7 @@
 #include "rt/render/dielectric.h"
 #include "rt/render/sampling.h"
 #include "rt/render/surface_maps.h"
+#include "shading_margins.h"
 
 namespace rt {
 
@@ -30,16 +31,6 @@ void add_all(std::vector<std::uint64_t>& into, const std::vector<std::uint64_t>&
 }
 
 double max_channel(const Vec3d& c) { return std::max({c.r, c.g, c.b}); }
-
-// Margin on n.l (cosine, dimensionless) before the convex rule trusts that a shadow ray leaves
-// the surface's front half-space: far above the ~1e-15 rounding of the double dot product and of
-// the float32 direction the ray really carries, so only rays within 1e-6 rad of grazing are traced.
-constexpr double kConvexFacingMargin = 1e-6;
-
-// Relative shortening (of t, float32) of a shadow ray that retraces a camera ray towards a light at
-// the eye: far above the few-ulp error with which intersectors compute the hit's own t, so the hit
-// surface is never its own occluder; nothing else lies in between, the camera ray found it closest.
-constexpr float kRetraceMargin = 0x1p-16f;
 
 std::string format_vec(const Vec3d& v) { return fmt::format("({:.6g}, {:.6g}, {:.6g})", v.x, v.y, v.z); }
 

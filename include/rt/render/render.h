@@ -33,6 +33,9 @@ struct RenderOptions {
   // Estimate the share of render time per ray kind (RayCounts' tick counters) from one pixel in
   // eight; costs about 1% of render time.
   bool time_queries = false;
+  // Shade the camera hits of plain materials a block at a time (BatchShader, vectorised). The image
+  // and the counts are the same bit for bit either way; false runs shade_camera_hit for every pixel.
+  bool batch_shading = true;
   // Called from worker threads (serialised) with the fraction of tiles done, in [0, 1].
   std::function<void(double)> on_progress;
   // Called from worker threads (serialised, before on_progress) when a tile is finished, with its

@@ -1,0 +1,125 @@
+#pragma once
+// Hits of plain materials shaded many at a time: shade_surface's arithmetic laid out over arrays
+// of hits (structure of arrays, world space, double) so that the compiler can vectorise it, with
+// the same operations in the same order, so that every colour and every count is bit for bit
+// what shade_camera_hit and find_color give (tests/test_batch_shade.cpp renders scenes both ways).
+// The reflection rays of a block are traced depth by depth (a wavefront) and their hits shaded the
+// same way; only the order in which the queries are made changes.
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "rt/render/shade.h"
+
+namespace rt {
+
+// kLanes doubles, one per hit of a batch.
+template <int kLanes>
+struct alignas(64) LaneArray {
+  double v[kLanes];
+};
+
+template <int kLanes>
+struct Vec3Lanes {
+  LaneArray<kLanes> x, y, z;
+};
+
+// Shades the hits of render_image's blocks. A hit is batched when it lies on a triangle and its
+// material is plain (no texture, surface map, glass, blend alpha or light emission), in a scene
+// without area lights, traced without a --debug-pixel trace; other hits take shade_camera_hit or
+// shade_hit, as before.
+class BatchShader {
+ public:
+  static constexpr int kLanes = 16;  // render_image's 4 x 4 blocks
+
+  // The shading arithmetic of up to kLanes hits; one per render thread, reused.
+  struct Lanes {
+    int count = 0;
+    std::array<std::uint32_t, kLanes> material{};
+    Vec3Lanes<kLanes> point, geometric_normal, normal, direction;  // normal: shading, unit; direction: unit
+    LaneArray<kLanes> error_bound;  // SurfacePoint::error_bound
+    Vec3Lanes<kLanes> ambient, diffuse, specular;  // the material's colours at each lane
+    LaneArray<kLanes> shininess;
+    std::array<bool, kLanes> highlight{};  // PlainMaterial::highlight
+    struct Light {  // one light's unshadowed term and direction at each lane
+      Vec3Lanes<kLanes> term, to_light;
+      LaneArray<kLanes> geometric_cosine;    // geometric normal . to_light (the convex rule)
+      std::array<bool, kLanes> on_point{};  // the light is exactly at the point: no direction
+    };
+    std::vector<Light> lights;  // parallel to Scene::lights
+  };
+
+  // A reflection ray of depth >= 1 and what becomes of it.
+  struct Secondary {
+    Ray ray;
+    Hit hit;
+    Vec3d throughput{1.0};  // the product of the reflection weights up to this ray, its own included
+    Vec3d weight{0.0};      // its reflection weight: the parent adds weight * colour
+    std::int32_t parent = -1;  // the pixel in PendingShading (depth 1), else the index in the previous wave
+    std::int32_t child = -1;   // its own reflection ray in the next wave, if any
+    bool batched = false;      // shaded here (local holds its lights' sum); else color came from shade_hit
+    Vec3d local{0.0};          // emission plus its unshadowed-and-unblocked light terms
+    Color color{0.0f};         // find_color of the ray
+  };
+
+  // Everything one render thread reuses from block to block.
+  struct Workspace {
+    std::array<std::int8_t, kLanes> lane_of{};  // per camera pixel of the block: its lane, or -1
+    Lanes lanes;
+    std::vector<std::vector<Secondary>> waves;  // [d]: the reflection rays of depth d (index 0 unused)
+  };
+
+  explicit BatchShader(const ShadingContext& context);
+
+  // False when no hit of the scene can be batched: every pixel takes shade_camera_hit.
+  bool enabled() const { return enabled_; }
+
+  // Starts a block: computes the shading arithmetic of the batchable camera hits among `hits` (at
+  // most kLanes; the closest hits of `rays`); pixels with `unbatched[k]` set are left out.
+  void prepare(std::span<const Ray> rays, std::span<const Hit> hits, std::span<const bool> unbatched,
+               Workspace& work) const;
+
+  // shade_camera_hit for pixel k of the block, when work.lane_of[k] >= 0: appends its pixel to
+  // `pending` and counts as shade_camera_hit does; its reflection ray waits in work.waves[1].
+  void finish_camera_hit(Workspace& work, int k, const Ray& ray, const Hit& hit, RayCounts& counts,
+                         PendingShading& pending) const;
+
+  // shade_camera_hit for a camera ray that hit nothing: the background.
+  void add_miss(PendingShading& pending) const { pending.pixels.emplace_back().emission = background_; }
+
+  // Traces the block's reflection rays depth by depth, shades their hits (shadow rays traced one by
+  // one, as find_color traces them) and sets each reflecting pixel's PendingShading::reflection.
+  void trace_reflections(Workspace& work, RayCounts& counts, PendingShading& pending) const;
+
+ private:
+  // A plain material's colours as shade_surface derives them (double, linear RGB).
+  struct PlainMaterial {
+    bool batched = false;
+    bool flip_back_face = false;  // BackFace::flipped: the shading normal turns to the viewer
+    bool highlight = false;       // the specular term is evaluated (MaterialPlan::specular, or unpruned)
+    bool reflects = false;        // MaterialPlan::reflection
+    double shininess = 0.0;
+    Vec3d ambient{0.0}, diffuse{0.0}, specular{0.0}, reflective{0.0}, emission{0.0};
+  };
+  bool batchable(const Hit& hit) const;
+  // The arithmetic of lanes.count hits (rays[i], hits[i] batchable).
+  void compute_lanes(Lanes& lanes, const std::array<Ray, kLanes>& rays, const std::array<Hit, kLanes>& hits) const;
+  void compute_surfaces(Lanes& lanes, const std::array<Ray, kLanes>& rays, const std::array<Hit, kLanes>& hits) const;
+  void compute_light(Lanes& lanes, std::size_t light) const;
+  // The light terms of lane i at `depth` through `sink` (lit / query, as shade_surface's Shadows),
+  // then its reflection ray, if any, appended to `next` (parent `parent`); returns its index or -1.
+  template <class Sink>
+  std::int32_t shade_lane(const Lanes& lanes, int i, int depth, const Ray& ray, const Hit& hit,
+                          const Vec3d& throughput, std::int32_t parent, RayCounts& counts, Sink& sink,
+                          std::vector<Secondary>& next) const;
+  void shade_wave(Workspace& work, int depth, RayCounts& counts) const;
+
+  const ShadingContext& context_;
+  bool enabled_ = false;
+  Vec3d background_;  // Settings::background
+  std::vector<PlainMaterial> materials_;
+};
+
+}  // namespace rt

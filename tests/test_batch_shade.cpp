@@ -1,0 +1,202 @@
+// The batch shader (src/render/batch_shade.h) changes no bit: every scene in scenes/, the shared
+// corpora and a scene built to reach each of its rules are rendered with RenderOptions::
+// batch_shading on and off, and the float images and every ray count must be identical.
+
+#include "catch.h"
+
+#include <algorithm>
+#include <cstring>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include <fmt/format.h>
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "render/batch_shade.h"
+#include "rt/accel/accel.h"
+#include "rt/flatten/flatten.h"
+#include "rt/io/load_scene.h"
+#include "rt/render/render.h"
+#include "rt/scene/shapes.h"
+#include "test_util.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+bool bit_identical(const rt::Image& a, const rt::Image& b) {
+  return a.width == b.width && a.height == b.height &&
+         std::memcmp(a.pixels.data(), b.pixels.data(), a.pixels.size() * sizeof(rt::Color)) == 0;
+}
+
+// Every count of the ray budget but the timing ticks.
+void check_same_counts(const rt::RayCounts& a, const rt::RayCounts& b) {
+  CHECK(a.camera == b.camera);
+  CHECK(a.shadow == b.shadow);
+  CHECK(a.reflection == b.reflection);
+  CHECK(a.refraction == b.refraction);
+  CHECK(a.see_through == b.see_through);
+  CHECK(a.area_light == b.area_light);
+  CHECK(a.shadow_per_light == b.shadow_per_light);
+  CHECK(a.reflection_per_depth == b.reflection_per_depth);
+  CHECK(a.hits_per_depth == b.hits_per_depth);
+  CHECK(a.skipped == b.skipped);
+}
+
+struct Variant {
+  const char* name;
+  rt::EffectsOptions effects;
+  rt::RayOffset offset;
+};
+
+std::vector<Variant> variants() {
+  rt::EffectsOptions unpruned;
+  unpruned.prune = false;
+  rt::EffectsOptions approximate;
+  approximate.min_throughput = 0.2;
+  approximate.min_light_contribution = 0.02;
+  return {{"pruned", {}, {}},
+          {"unpruned", unpruned, {}},
+          {"approximations", approximate, {}},
+          {"fixed offsets", {}, {rt::RayOffset::Mode::fixed, 1e-4}}};
+}
+
+// Renders `scene` (Embree, its surface test) with batch shading on and off under each variant;
+// requires identical images and counts, and with `expect_batched` that the batch shader is on.
+void check_batching_is_exact(const rt::Scene& scene, const std::string& label, bool expect_batched = false) {
+  const rt::FlatScene flat = rt::flatten_scene(scene);
+  const rt::SceneSurfaceTest surface_test(scene, flat);
+  const auto accel = rt::build_accel(rt::AccelKind::embree, flat, rt::with_surface_test({}, surface_test));
+  for (const Variant& variant : variants()) {
+    INFO(label << ", " << variant.name);
+    rt::RenderOptions options;
+    options.effects = variant.effects;
+    options.ray_offset = variant.offset;
+    const rt::RenderResult batched = rt::render_image(scene, flat, *accel, options);
+    options.batch_shading = false;
+    const rt::RenderResult scalar = rt::render_image(scene, flat, *accel, options);
+    CHECK(bit_identical(batched.image, scalar.image));
+    check_same_counts(batched.rays, scalar.rays);
+    if (expect_batched) {
+      const rt::ShadingContext context{scene, flat, *accel, batched.plan, variant.offset};
+      CHECK(rt::BatchShader(context).enabled());
+    }
+  }
+}
+
+std::optional<fs::path> shared_dir(const fs::path& relative) {
+  const fs::path dir = fs::path(RT_SHARED_DATA_DIR) / relative;
+  std::error_code error;
+  if (fs::is_directory(dir, error)) return dir;
+  WARN("shared data not found at " << dir.string() << " (RT_SHARED_DATA_DIR): skipping that corpus");
+  return std::nullopt;
+}
+
+std::vector<fs::path> files_with(const fs::path& dir, const std::vector<std::string>& extensions) {
+  std::vector<fs::path> files;
+  for (const auto& entry : fs::recursive_directory_iterator(dir))
+    if (std::find(extensions.begin(), extensions.end(), entry.path().extension().string()) != extensions.end())
+      files.push_back(entry.path());
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+rt::Scene at_width(rt::Scene scene, int width) {
+  scene.settings.height = std::max(1, int(std::lround(double(scene.settings.height) * width / scene.settings.width)));
+  scene.settings.width = width;
+  return scene;
+}
+
+rt::Light point_light(rt::Vec3d position, float color, rt::Vec3d attenuation = {1.0, 0.0, 0.0}) {
+  rt::Light light;
+  light.position = rt::Vec4d(position, 1.0);
+  light.color = rt::Color(color);
+  light.attenuation = attenuation;
+  return light;
+}
+
+rt::Material phong(float diffuse, float specular, float shininess) {
+  rt::Material m;
+  m.ambient = rt::Color(0.05f);
+  m.diffuse = rt::Color(diffuse, diffuse * 0.8f, diffuse * 0.6f);
+  m.specular = rt::Color(specular);
+  m.shininess = shininess;
+  return m;
+}
+
+// Each rule of the batch shader reached: point lights with attenuation, a spot, a directional and
+// a black light, a light at the eye, a two-sided plane seen from behind, spheres and an emitter-free
+// glass-free mix of reflecting and matte materials, reflections four deep.
+rt::Scene rules_scene() {
+  const rt::Vec3f a(-2, 0, -2), b(2, 0, -2), c(2, 0, 2), d(-2, 0, 2);
+  rt::TriangleMesh floor = rt_test::make_flat_mesh({{a, c, b}, {a, d, c}});
+  // A wall facing away from the camera (its normal points to -z): seen from behind.
+  rt::TriangleMesh wall = rt_test::make_flat_mesh({{rt::Vec3f(-1, 0, -1), rt::Vec3f(-1, 2, -1), rt::Vec3f(1, 0, -1)}});
+  rt::Scene scene = rt_test::make_scene({{floor, 0}, {wall, 1}, {rt::make_sphere_mesh(0.4, 24, 12), 2}});
+  scene.nodes[0].models.push_back(rt::Model{nullptr, 3, rt::Sphere{rt::Vec3d(0.9, 0.5, 0.3), 0.35}});
+  scene.materials = {phong(0.7f, 0.3f, 40.0f), phong(0.5f, 0.0f, 1.0f), phong(0.2f, 0.8f, 200.0f), phong(0.6f, 0.2f, 20.0f)};
+  scene.materials[1].back_face = rt::BackFace::flipped;
+  scene.materials[1].reflective = rt::Color(0.0f);
+  scene.camera.eye = rt::Vec3d(0.3, 1.2, 3.0);
+  scene.camera.target = rt::Vec3d(0.0, 0.4, 0.0);
+  scene.lights.push_back(point_light({1.5, 3.0, 2.0}, 0.8f, {1.0, 0.1, 0.02}));
+  rt::Light spot = point_light({-1.0, 2.5, 1.0}, 0.6f);
+  spot.spot_direction = glm::normalize(rt::Vec3d(1.0, -2.5, -1.0));
+  spot.spot_cos_inner = 0.95;
+  spot.spot_cos_outer = 0.85;
+  scene.lights.push_back(spot);
+  rt::Light sun;
+  sun.position = rt::Vec4d(glm::normalize(rt::Vec3d(-0.5, 1.0, 0.3)), 0.0);
+  sun.color = rt::Color(0.3f);
+  scene.lights.push_back(sun);
+  scene.lights.push_back(point_light({0.0, 1.0, 0.0}, 0.0f));  // black: off
+  scene.lights.push_back(point_light(scene.camera.eye, 0.2f));  // at the eye
+  scene.settings.width = 96;
+  scene.settings.height = 72;
+  scene.settings.max_depth = 4;
+  scene.settings.background = rt::Color(0.1f, 0.2f, 0.3f);
+  return scene;
+}
+
+}  // namespace
+
+TEST_CASE("batch shading changes no bit: a scene reaching each of its rules", "[batch]") {
+  check_batching_is_exact(rules_scene(), "rules scene", true);
+}
+
+TEST_CASE("batch shading changes no bit: one convex mesh (the convex rule)", "[batch]") {
+  rt::Scene scene = rt_test::make_scene({{rt::make_cube_mesh(), 0}});
+  scene.materials = {phong(0.7f, 0.3f, 40.0f)};
+  scene.camera.eye = rt::Vec3d(2.0, 1.5, 3.0);
+  scene.camera.target = rt::Vec3d(0.0);
+  scene.lights = {point_light({2.0, 3.0, 1.0}, 1.0f)};
+  scene.settings.width = 64;
+  scene.settings.height = 48;
+  check_batching_is_exact(scene, "convex cube", true);
+}
+
+TEST_CASE("batch shading changes no bit: every scene in scenes/", "[batch]") {
+  check_batching_is_exact(rt::make_default_scene(), "built-in default", true);
+  for (const fs::path& file : files_with(fs::path(RT_SOURCE_DIR) / "scenes", {".json"}))
+    check_batching_is_exact(at_width(rt::load_scene(file.string()), 160), "scenes/" + file.filename().string());
+}
+
+TEST_CASE("batch shading changes no bit: the CSE167x corpus", "[batch][corpus]") {
+  const auto dir = shared_dir(fs::path("data") / "cse167x" / "scenes");
+  if (!dir) return;
+  for (const fs::path& file : files_with(*dir, {".test"}))
+    check_batching_is_exact(at_width(rt::load_scene(file.string()), 160), file.filename().string());
+}
+
+TEST_CASE("batch shading changes no bit: glTF and OBJ models at 120 pixels wide", "[batch][corpus]") {
+  const auto gltf = shared_dir(fs::path("data") / "models" / "gltf");
+  const auto obj = shared_dir(fs::path("data") / "models" / "obj");
+  std::vector<fs::path> files;
+  if (gltf) files = files_with(*gltf, {".gltf", ".glb"});
+  if (obj)
+    for (const fs::path& file : files_with(*obj, {".obj"})) files.push_back(file);
+  for (const fs::path& file : files)
+    check_batching_is_exact(at_width(rt::load_scene(file.string()), 120), file.filename().string());
+}
