@@ -52,16 +52,19 @@ class BatchShader {
   };
 
   // A reflection ray of depth >= 1 and what becomes of it.
+  // Its fields are set one by one where it is made (shade_lane), not zeroed first: every reflection
+  // ray makes one.
   struct Secondary {
+    Secondary() {}  // user-provided, so that emplace_back() does not zero it first (a memset per ray)
     Ray ray;
     Hit hit;
-    Vec3d throughput{1.0};  // the product of the reflection weights up to this ray, its own included
-    Vec3d weight{0.0};      // its reflection weight: the parent adds weight * colour
-    std::int32_t parent = -1;  // the pixel in PendingShading (depth 1), else the index in the previous wave
-    std::int32_t child = -1;   // its own reflection ray in the next wave, if any
-    bool batched = false;      // shaded here (local holds its lights' sum); else color came from shade_hit
-    Vec3d local{0.0};          // emission plus its unshadowed-and-unblocked light terms
-    Color color{0.0f};         // find_color of the ray
+    Vec3d throughput;    // the product of the reflection weights up to this ray, its own included
+    Vec3d weight;        // its reflection weight: the parent adds weight * colour
+    std::int32_t parent;  // the pixel in PendingShading (depth 1), else the index in the previous wave
+    std::int32_t child;   // its own reflection ray in the next wave, or -1
+    bool batched;         // shaded here (local holds its lights' sum); else color came from shade_hit
+    Vec3d local;          // emission plus its unshadowed-and-unblocked light terms
+    Color color;          // find_color of the ray
   };
 
   // Everything one render thread reuses from block to block.

@@ -103,6 +103,8 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   result.region = region;
   result.image = Image(region.width(), region.height());
   result.tile_done.assign(std::size_t(tile_count), 0);
+  constexpr int kBlock = 4;  // camera rays are traced in blocks of kBlock x kBlock pixels (see render_block)
+  constexpr int kBlockPixels = kBlock * kBlock;
   struct ThreadState {
     RayCounts counts;
     // Buffers of the camera blocks, reused from block to block.
@@ -111,6 +113,12 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
     std::vector<std::uint32_t> by_light;
     std::vector<Ray> grouped_rays;
     BatchShader::Workspace batch;
+    // A block's rays, hits, per-pixel sums and timing ticks: kept here, not built (and zeroed)
+    // per block.
+    std::array<Ray, kBlockPixels> rays;
+    std::array<Hit, kBlockPixels> hits;
+    std::array<Vec3d, kBlockPixels> sums;
+    std::array<std::uint64_t, kBlockPixels> ticks{};
     std::uint64_t non_finite = 0;
     std::uint64_t first_non_finite = ~std::uint64_t(0);  // row-major pixel index
   };
@@ -132,8 +140,6 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   // pixel's terms then summed as shade_hit sums them (PendingShading). When timed, a timed pixel is
   // charged an equal share of its packets' ticks, so the shares stay fractions of the timed
   // pixels' loop ticks.
-  constexpr int kBlock = 4;
-  constexpr int kBlockPixels = kBlock * kBlock;
   // Light slots: the scene's lights, then the emitters (RayCounts::add_shadow_query).
   const std::size_t light_count = scene.lights.size();
   const std::size_t slot_count = light_count + result.plan.emitters.size();
@@ -151,12 +157,13 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
         ys[n] = y;
       }
     std::array<bool, kBlockPixels> timed{};
-    std::array<std::uint64_t, kBlockPixels> ticks{};  // per timed pixel: its loop ticks this sample
+    std::array<std::uint64_t, kBlockPixels>& ticks = state.ticks;  // per timed pixel: its loop ticks this sample
     if (options.time_queries)
       for (int k = 0; k < n; ++k) timed[k] = is_timing_sample(xs[k], ys[k]);
-    std::array<Vec3d, kBlockPixels> sums{};  // linear RGB, double: the box filter's average (spp > 1)
-    std::array<Ray, kBlockPixels> rays;
-    std::array<Hit, kBlockPixels> hits;
+    std::array<Vec3d, kBlockPixels>& sums = state.sums;  // linear RGB, double: the box filter's average (spp > 1)
+    if (spp > 1) sums.fill(Vec3d(0.0));
+    std::array<Ray, kBlockPixels>& rays = state.rays;
+    std::array<Hit, kBlockPixels>& hits = state.hits;
     const bool one_sample = options.sample_index >= 0;  // the image holds sample sample_index alone
     const int first_sample = one_sample ? options.sample_index : 0;
     const int end_sample = one_sample ? options.sample_index + 1 : spp;
