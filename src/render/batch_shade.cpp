@@ -18,8 +18,7 @@ namespace {
 
 constexpr int kLanes = BatchShader::kLanes;
 
-// Unit roundoff of float32 and the safety factor of make_surface_point (ray_offset.cpp).
-constexpr double kErrorScale = 8.0 * 0x1p-24;
+using ray_offset_detail::kScaledRoundoff;
 
 void count_at(std::vector<std::uint64_t>& counts, std::size_t index) {
   if (counts.size() <= index) counts.resize(index + 1, 0);
@@ -156,7 +155,7 @@ void BatchShader::compute_surfaces(Lanes& block, const std::array<Ray, kLanes>& 
     const double longest = std::max(std::max(l1, l2), l3);
     const double largest = std::max(std::max(std::abs(block.point.x.v[i]), std::abs(block.point.y.v[i])),
                                     std::abs(block.point.z.v[i]));
-    block.error_bound.v[i] = kErrorScale * (std::sqrt(3.0) * largest + (4.0 + 2.0 * kappa) * longest);
+    block.error_bound.v[i] = kScaledRoundoff * (std::sqrt(3.0) * largest + (4.0 + 2.0 * kappa) * longest);
   }
 
   // The interpolated shading normal and the unit ray direction.
@@ -180,6 +179,35 @@ void BatchShader::compute_surfaces(Lanes& block, const std::array<Ray, kLanes>& 
     block.normal.y.v[i] = sign * (ny * n_scale);
     block.normal.z.v[i] = sign * (nz * n_scale);
   }
+
+  // The reflection ray: reflect_direction and offset_ray_origin.
+  for (int i = 0; i < lanes; ++i) {
+    const double dx = block.direction.x.v[i], dy = block.direction.y.v[i], dz = block.direction.z.v[i];
+    const double nx = block.normal.x.v[i], ny = block.normal.y.v[i], nz = block.normal.z.v[i];
+    const double twice = 2.0 * (dx * nx + dy * ny + dz * nz);
+    const double rx = dx - twice * nx, ry = dy - twice * ny, rz = dz - twice * nz;
+    block.reflected.x.v[i] = rx, block.reflected.y.v[i] = ry, block.reflected.z.v[i] = rz;
+    const double cosine = block.geometric_normal.x.v[i] * rx + block.geometric_normal.y.v[i] * ry +
+                          block.geometric_normal.z.v[i] * rz;
+    set_origin(block, i, cosine, block.reflection_origin);
+  }
+}
+
+void BatchShader::set_origin(const Lanes& block, int i, double cosine, Vec3fLanes<kLanes>& origin) const {
+  // offset_ray_origin: off the surface along the geometric normal, to the side the ray goes.
+  const double sign = cosine >= 0.0 ? 1.0 : -1.0;  // n or -n: multiplying by -1 negates exactly
+  const double sx = sign * block.geometric_normal.x.v[i], sy = sign * block.geometric_normal.y.v[i],
+               sz = sign * block.geometric_normal.z.v[i];
+  const double px = block.point.x.v[i], py = block.point.y.v[i], pz = block.point.z.v[i];
+  if (context_.ray_offset.mode == RayOffset::Mode::fixed) {
+    const double epsilon = context_.ray_offset.epsilon;
+    origin.x[i] = float(px + epsilon * sx), origin.y[i] = float(py + epsilon * sy), origin.z[i] = float(pz + epsilon * sz);
+    return;
+  }
+  const double bound = block.error_bound.v[i];
+  origin.x[i] = ray_offset_detail::round_away(px + bound * sx, sx);
+  origin.y[i] = ray_offset_detail::round_away(py + bound * sy, sy);
+  origin.z[i] = ray_offset_detail::round_away(pz + bound * sz, sz);
 }
 
 void BatchShader::compute_light(Lanes& block, std::size_t j) const {
@@ -222,6 +250,21 @@ void BatchShader::compute_light(Lanes& block, std::size_t j) const {
     n_dot_h.v[i] = half_length > 0.0 ? std::max((nx * hx + ny * hy + nz * hz) / half_length, 0.0) : 0.0;
     out.geometric_cosine.v[i] = block.geometric_normal.x.v[i] * lx + block.geometric_normal.y.v[i] * ly +
                                 block.geometric_normal.z.v[i] * lz;
+  }
+  // The shadow ray: offset_ray_origin along to_light, shadow_ray_tfar from the float32 origin.
+  const double light_extent = std::max({std::abs(position.x), std::abs(position.y), std::abs(position.z)});
+  for (int i = 0; i < lanes; ++i) {
+    set_origin(block, i, out.geometric_cosine.v[i], out.shadow_origin);
+    if (directional) {
+      out.shadow_distance.v[i] = double(kInfinity);
+      continue;
+    }
+    const double ox = position.x - double(out.shadow_origin.x[i]), oy = position.y - double(out.shadow_origin.y[i]),
+                 oz = position.z - double(out.shadow_origin.z[i]);
+    const double distance = std::sqrt(ox * ox + oy * oy + oz * oz);
+    out.shadow_distance.v[i] = context_.ray_offset.mode == RayOffset::Mode::fixed
+                                   ? distance - context_.ray_offset.epsilon
+                                   : ray_offset_detail::robust_shadow_tfar(distance, light_extent);
   }
   LaneArray<kLanes> power;
   for (int i = 0; i < lanes; ++i)
@@ -291,7 +334,6 @@ std::int32_t BatchShader::shade_lane(const Lanes& lanes, int i, int depth, const
   const auto skip = [&](SkipRule rule) { ++counts.skipped[static_cast<int>(rule)]; };
   count_at(counts.hits_per_depth, std::size_t(depth));
 
-  const SurfacePoint surface{lane(lanes.point, i), lane(lanes.geometric_normal, i), lanes.error_bound.v[i]};
   for (std::size_t j = 0; j < context_.scene.lights.size(); ++j) {
     const LightPlan& light_plan = plan.lights[j];
     if (!light_plan.contributes) {
@@ -326,13 +368,9 @@ std::int32_t BatchShader::shade_lane(const Lanes& lanes, int i, int depth, const
       skip(SkipRule::convex_facing);
       sink.lit(j, term);
     } else {
-      const Light& scene_light = context_.scene.lights[j];
       Ray shadow_ray;
-      shadow_ray.origin = offset_ray_origin(context_.ray_offset, surface, to_light);
-      const double light_distance =
-          scene_light.is_directional()
-              ? double(kInfinity)
-              : shadow_ray_tfar(context_.ray_offset, Vec3d(shadow_ray.origin), Vec3d(scene_light.position));
+      shadow_ray.origin = Vec3f(light.shadow_origin.x[i], light.shadow_origin.y[i], light.shadow_origin.z[i]);
+      const double light_distance = light.shadow_distance.v[i];
       if (light_distance > 0.0) {
         shadow_ray.direction = Vec3f(to_light);
         shadow_ray.tfar = static_cast<float>(light_distance);
@@ -355,10 +393,9 @@ std::int32_t BatchShader::shade_lane(const Lanes& lanes, int i, int depth, const
     skip(SkipRule::low_throughput);
     return -1;
   }
-  const Vec3d reflected = reflect_direction(lane(lanes.direction, i), lane(lanes.normal, i));
   Secondary& secondary = next.emplace_back();  // in place, as DeferredSink's records
-  secondary.ray.origin = offset_ray_origin(context_.ray_offset, surface, reflected);
-  secondary.ray.direction = Vec3f(reflected);
+  secondary.ray.origin = Vec3f(lanes.reflection_origin.x[i], lanes.reflection_origin.y[i], lanes.reflection_origin.z[i]);
+  secondary.ray.direction = Vec3f(lane(lanes.reflected, i));
   secondary.throughput = next_throughput;
   secondary.weight = reflective;
   secondary.parent = parent;

@@ -1,8 +1,6 @@
 #include "rt/render/ray_offset.h"
 
 #include <algorithm>
-#include <bit>
-#include <cstdint>
 #include <cmath>
 #include <cstdlib>
 
@@ -23,26 +21,11 @@ constexpr double kSafety = 8.0;
 
 double max_abs_component(const Vec3d& v) { return std::max({std::abs(v.x), std::abs(v.y), std::abs(v.z)}); }
 
-// std::nextafter(f, +inf) (up) or std::nextafter(f, -inf), for f not NaN and not the infinity it
-// steps towards, on the bits: the float32 ordering of non-negative values is their integers' and
-// of negative ones the reverse, and from either zero the next is the smallest subnormal.
-float next_float(float f, bool up) {
-  if (f == 0.0f) return up ? 0x1p-149f : -0x1p-149f;
-  const std::uint32_t bits = std::bit_cast<std::uint32_t>(f);
-  return std::bit_cast<float>((f > 0.0f) == up ? bits + 1 : bits - 1);
-}
-
 // Rounds each component of `p` to float32, and when rounding moved it against `away` (towards the
 // surface), steps one float further along `away`: the offset survives the conversion.
 Vec3f round_away(const Vec3d& p, const Vec3d& away) {
-  Vec3f result;
-  for (int i = 0; i < 3; ++i) {
-    float f = static_cast<float>(p[i]);
-    if (away[i] > 0.0 && double(f) < p[i]) f = next_float(f, true);
-    if (away[i] < 0.0 && double(f) > p[i]) f = next_float(f, false);
-    result[i] = f;
-  }
-  return result;
+  return {ray_offset_detail::round_away(p.x, away.x), ray_offset_detail::round_away(p.y, away.y),
+          ray_offset_detail::round_away(p.z, away.z)};
 }
 
 }  // namespace
@@ -122,7 +105,7 @@ double shadow_ray_tfar(const RayOffset& policy, const Vec3d& origin, const Vec3d
   if (policy.mode == RayOffset::Mode::fixed) return distance - policy.epsilon;
   // A surface through the light point is met at t = distance up to the float32 error of t, which is
   // relative to the coordinates involved; stop short by the same kind of bound as above.
-  return distance - kSafety * kFloatRoundoff * (std::sqrt(3.0) * max_abs_component(light) + 4.0 * distance);
+  return ray_offset_detail::robust_shadow_tfar(distance, max_abs_component(light));
 }
 
 }  // namespace rt

@@ -1,6 +1,9 @@
 #pragma once
 // Where secondary rays start, and where shadow rays stop: the self-intersection policy, in one place.
 
+#include <bit>
+#include <cmath>
+#include <cstdint>
 #include <string>
 #include <string_view>
 
@@ -42,6 +45,40 @@ SurfacePoint make_surface_point(const Vec3d& p0, const Vec3d& p1, const Vec3d& p
 // an origin near the point plus a generous bound (2^-40 relative) on the double-precision sphere
 // test, times the same safety factor as for triangles.
 SurfacePoint make_sphere_surface_point(const FlatSphere& sphere, const Vec3d& origin, const Vec3d& direction, double t);
+
+// The arithmetic of offset_ray_origin and shadow_ray_tfar in pieces, for callers that compute many
+// rays at once and must round exactly as those do (the batch shader, src/render/batch_shade.cpp).
+namespace ray_offset_detail {
+
+// std::nextafter(f, +inf) (up) or std::nextafter(f, -inf), for f not NaN and not the infinity it
+// steps towards, on the bits: the float32 ordering of non-negative values is their integers' and
+// of negative ones the reverse, and from either zero the next is the smallest subnormal.
+inline float next_float(float f, bool up) {
+  if (f == 0.0f) return up ? 0x1p-149f : -0x1p-149f;
+  const std::uint32_t bits = std::bit_cast<std::uint32_t>(f);
+  return std::bit_cast<float>((f > 0.0f) == up ? bits + 1 : bits - 1);
+}
+
+// One coordinate of a robust origin: p rounded to float32 and, when rounding moved it against
+// `away` (towards the surface), one float further along `away`, so the offset survives.
+inline float round_away(double p, double away) {
+  const float f = static_cast<float>(p);
+  if (away > 0.0 && double(f) < p) return next_float(f, true);
+  if (away < 0.0 && double(f) > p) return next_float(f, false);
+  return f;
+}
+
+// Unit roundoff of float32 (the precision of Embree's test and of the origins we hand it) times
+// the safety factor over the first-order error bounds (see ray_offset.cpp).
+inline constexpr double kScaledRoundoff = 8.0 * 0x1p-24;
+
+// shadow_ray_tfar's robust value for a ray of length `distance` towards a light whose largest
+// coordinate magnitude is `light_extent` (world units).
+inline double robust_shadow_tfar(double distance, double light_extent) {
+  return distance - kScaledRoundoff * (std::sqrt(3.0) * light_extent + 4.0 * distance);
+}
+
+}  // namespace ray_offset_detail
 
 // Origin (float32, world space) for a ray leaving `surface` along `direction`: the point moved
 // along the geometric normal to the side `direction` points to, far enough that no float32 or
