@@ -118,6 +118,7 @@ AreaLights collect_area_lights(const Scene& scene, const FlatScene& flat, const 
     t.normal = cross / twice_area;
     t.area = 0.5 * twice_area;
     t.primitive = static_cast<std::uint32_t>(i);
+    t.frame = make_triangle_frame(t.p0, t.p1, t.p2);
     Emitter& emitter = lights.emitters[std::size_t(e)];
     for (const Vec3d& p : {t.p0, t.p1, t.p2}) emitter.bounds.extend(p);
     emitter.area += t.area;
@@ -211,7 +212,7 @@ LightSample EmitterSampler::sample(Vec2d u) {
   } else {
     b = sample_triangle_uniform({u.x, v});
   }
-  sample.light_point = make_surface_point(t.p0, t.p1, t.p2, b.y, b.z);
+  sample.light_point = make_surface_point(t.p0, t.p1, t.p2, t.frame, b.y, b.z);
   const Vec3d offset = sample.light_point.point - point_;
   sample.distance = glm::length(offset);
   if (!(sample.distance > 0.0)) return sample;

@@ -46,13 +46,12 @@ std::string to_string(const RayOffset& offset) {
   return offset.mode == RayOffset::Mode::robust ? "robust" : fmt::format("fixed:{}", offset.epsilon);
 }
 
-SurfacePoint make_surface_point(const Vec3d& p0, const Vec3d& p1, const Vec3d& p2, double b1, double b2) {
-  SurfacePoint surface;
-  surface.point = (1.0 - b1 - b2) * p0 + b1 * p1 + b2 * p2;
+TriangleFrame make_triangle_frame(const Vec3d& p0, const Vec3d& p1, const Vec3d& p2) {
   const Vec3d e1 = p1 - p0, e2 = p2 - p0, e3 = p2 - p1;
   const Vec3d cross = glm::cross(e1, e2);
   const double area2 = glm::length(cross);
-  surface.geometric_normal = area2 > 0.0 ? cross / area2 : Vec3d(0.0);
+  TriangleFrame frame;
+  frame.geometric_normal = area2 > 0.0 ? cross / area2 : Vec3d(0.0);
 
   // A float32 test decides whether a ray from o meets the triangle it leaves from the sign of
   //   N = Ng . (p0 - o),  Ng = (p1 - p0) x (p2 - p0),
@@ -68,11 +67,24 @@ SurfacePoint make_surface_point(const Vec3d& p0, const Vec3d& p1, const Vec3d& p
   // nothing comparable (pbrt-v4's OffsetRayOrigin bounds the same quantity for its own
   // intersector). Moving o off the plane by more than that total, times kSafety, keeps the computed
   // sign of N right, so the triangle left is never found at t >= 0 again, at any scene scale.
+  // The edge terms are the triangle's; the first is the point's (make_surface_point).
   const double kappa = area2 > 0.0 ? glm::length(e1) * glm::length(e2) / area2 : 1.0;
   const double longest_edge = std::max({glm::length(e1), glm::length(e2), glm::length(e3)});
-  surface.error_bound = kSafety * kFloatRoundoff *
-                        (std::sqrt(3.0) * max_abs_component(surface.point) + (4.0 + 2.0 * kappa) * longest_edge);
+  frame.edge_term = (4.0 + 2.0 * kappa) * longest_edge;
+  return frame;
+}
+
+SurfacePoint make_surface_point(const Vec3d& p0, const Vec3d& p1, const Vec3d& p2, const TriangleFrame& frame,
+                                double b1, double b2) {
+  SurfacePoint surface;
+  surface.point = (1.0 - b1 - b2) * p0 + b1 * p1 + b2 * p2;
+  surface.geometric_normal = frame.geometric_normal;
+  surface.error_bound = kSafety * kFloatRoundoff * (std::sqrt(3.0) * max_abs_component(surface.point) + frame.edge_term);
   return surface;
+}
+
+SurfacePoint make_surface_point(const Vec3d& p0, const Vec3d& p1, const Vec3d& p2, double b1, double b2) {
+  return make_surface_point(p0, p1, p2, make_triangle_frame(p0, p1, p2), b1, b2);
 }
 
 SurfacePoint make_sphere_surface_point(const FlatSphere& sphere, const Vec3d& origin, const Vec3d& direction,

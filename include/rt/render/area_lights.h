@@ -40,6 +40,7 @@ struct EmitterTriangle {
   Vec3d normal;              // unit, towards the front: (p1 - p0) x (p2 - p0)
   double area = 0.0;         // scene units^2
   std::uint32_t primitive = 0;  // index in FlatScene::triangles
+  TriangleFrame frame;       // make_triangle_frame: for the light samples' surface points
 };
 
 // The triangles of one emissive material, chosen among by power: triangle i with probability

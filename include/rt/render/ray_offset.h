@@ -38,6 +38,18 @@ struct SurfacePoint {
 // zero normal.
 SurfacePoint make_surface_point(const Vec3d& p0, const Vec3d& p1, const Vec3d& p2, double b1, double b2);
 
+// What make_surface_point derives from the triangle alone, for a triangle whose points are made many
+// times (an emitter's light samples): its geometric normal and the edge part of the error bound.
+struct TriangleFrame {
+  Vec3d geometric_normal{0.0};  // unit, or zero for a zero-area triangle
+  double edge_term = 0.0;       // (4 + 2 kappa) x the longest edge, world units (see ray_offset.cpp)
+};
+TriangleFrame make_triangle_frame(const Vec3d& p0, const Vec3d& p1, const Vec3d& p2);
+
+// make_surface_point(p0, p1, p2, b1, b2) bit for bit, `frame` being make_triangle_frame(p0, p1, p2).
+SurfacePoint make_surface_point(const Vec3d& p0, const Vec3d& p1, const Vec3d& p2, const TriangleFrame& frame,
+                                double b1, double b2);
+
 // The point where a ray (world space; origin and direction as traced, t from the Hit) meets an
 // analytic sphere, with its outward unit normal as geometric normal. The point is computed in the
 // sphere's object space and projected back onto the unit sphere (pbrt's reprojection), so it lies
