@@ -349,7 +349,8 @@ double blend_coverage(const ShadingContext& context, const Material& material, c
   return std::clamp(double(material.alpha), 0.0, 1.0);
 }
 
-// shade_hit's work for a hit, with the shadow queries left to `shadows`.
+// shade_hit's work for a hit, with the shadow queries left to `shadows`. The batch shader
+// (batch_shade.cpp) repeats this for plain materials operation for operation: change both.
 template <class Shadows>
 void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit, int depth, RayCounts& counts,
                    const Vec3d& throughput, std::uint64_t path_seed, Shadows& shadows) {
