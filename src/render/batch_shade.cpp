@@ -399,6 +399,8 @@ std::int32_t BatchShader::shade_lane(const Lanes& lanes, int i, int depth, const
   secondary.throughput = next_throughput;
   secondary.weight = reflective;
   secondary.parent = parent;
+  secondary.child = -1;
+  secondary.batched = false;
   ++counts.reflection;
   count_at(counts.reflection_per_depth, std::size_t(depth) + 1);
   return static_cast<std::int32_t>(next.size() - 1);
