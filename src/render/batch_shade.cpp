@@ -16,8 +16,6 @@ namespace rt {
 
 namespace {
 
-constexpr int kLanes = BatchShader::kLanes;
-
 using ray_offset_detail::kScaledRoundoff;
 
 void count_at(std::vector<std::uint64_t>& counts, std::size_t index) {
