@@ -86,28 +86,9 @@ void check_batching_is_exact(const rt::Scene& scene, const std::string& label, b
   }
 }
 
-std::optional<fs::path> shared_dir(const fs::path& relative) {
-  const fs::path dir = fs::path(RT_SHARED_DATA_DIR) / relative;
-  std::error_code error;
-  if (fs::is_directory(dir, error)) return dir;
-  WARN("shared data not found at " << dir.string() << " (RT_SHARED_DATA_DIR): skipping that corpus");
-  return std::nullopt;
-}
-
-std::vector<fs::path> files_with(const fs::path& dir, const std::vector<std::string>& extensions) {
-  std::vector<fs::path> files;
-  for (const auto& entry : fs::recursive_directory_iterator(dir))
-    if (std::find(extensions.begin(), extensions.end(), entry.path().extension().string()) != extensions.end())
-      files.push_back(entry.path());
-  std::sort(files.begin(), files.end());
-  return files;
-}
-
-rt::Scene at_width(rt::Scene scene, int width) {
-  scene.settings.height = std::max(1, int(std::lround(double(scene.settings.height) * width / scene.settings.width)));
-  scene.settings.width = width;
-  return scene;
-}
+using rt_test::at_width;
+using rt_test::files_with;
+using rt_test::shared_dir;
 
 rt::Light point_light(rt::Vec3d position, float color, rt::Vec3d attenuation = {1.0, 0.0, 0.0}) {
   rt::Light light;

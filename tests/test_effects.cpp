@@ -100,28 +100,9 @@ std::string check_pruning_is_exact(rt::Scene scene, const std::string& label) {
                      double(pruned.rays.total()) / double(full.rays.total()), pruned.seconds, full.seconds);
 }
 
-std::optional<fs::path> shared_dir(const fs::path& relative) {
-  const fs::path dir = fs::path(RT_SHARED_DATA_DIR) / relative;
-  std::error_code error;
-  if (fs::is_directory(dir, error)) return dir;
-  WARN("shared data not found at " << dir.string() << " (RT_SHARED_DATA_DIR): skipping that corpus");
-  return std::nullopt;
-}
-
-std::vector<fs::path> files_with(const fs::path& dir, const std::vector<std::string>& extensions) {
-  std::vector<fs::path> files;
-  for (const auto& entry : fs::recursive_directory_iterator(dir))
-    if (std::find(extensions.begin(), extensions.end(), entry.path().extension().string()) != extensions.end())
-      files.push_back(entry.path());
-  std::sort(files.begin(), files.end());
-  return files;
-}
-
-rt::Scene at_size(rt::Scene scene, int width) {
-  scene.settings.height = std::max(1, int(std::lround(double(scene.settings.height) * width / scene.settings.width)));
-  scene.settings.width = width;
-  return scene;
-}
+using rt_test::at_width;
+using rt_test::files_with;
+using rt_test::shared_dir;
 
 const char* kTableHeader = "scene                               resolution        rays pruned   rays full  ratio  pruned s   full s";
 
@@ -187,7 +168,7 @@ TEST_CASE("pruning never changes the image: glTF and OBJ models at 160 pixels wi
   if (files.empty()) return;
   std::cout << "\n" << kTableHeader << "\n";
   for (const fs::path& file : files)
-    std::cout << check_pruning_is_exact(at_size(rt::load_scene(file.string()), 160), file.filename().string()) << "\n";
+    std::cout << check_pruning_is_exact(at_width(rt::load_scene(file.string()), 160), file.filename().string()) << "\n";
 }
 
 TEST_CASE("every skip rule has a name and a slot in the ray budget", "[effects]") {
@@ -317,7 +298,7 @@ TEST_CASE("the opt-in approximations stay within their documented bounds", "[eff
   std::uint64_t saved = 0;
   for (const char* name : {"default.json", "hall-of-mirrors.json", "cornell-box.json"}) {
     INFO(name);
-    rt::Scene scene = at_size(rt::load_scene((fs::path(RT_SOURCE_DIR) / "scenes" / name).string()), 200);
+    rt::Scene scene = at_width(rt::load_scene((fs::path(RT_SOURCE_DIR) / "scenes" / name).string()), 200);
     const Renderer renderer(scene);
     const rt::RenderResult exact = renderer.render({});
     for (const auto& [throughput, light] : {std::pair{0.05, 0.0}, std::pair{0.0, 0.02}, std::pair{0.02, 0.01}}) {

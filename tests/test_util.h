@@ -5,12 +5,14 @@
 #include <sys/wait.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <array>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <stdexcept>
@@ -20,6 +22,7 @@
 #include <utility>
 #include <vector>
 
+#include "catch.h"
 #include "rt/accel/accel.h"
 #include "rt/flatten/flatten.h"
 #include "rt/render/render.h"
@@ -173,6 +176,34 @@ inline std::string small_json_scene(const std::string& extra = "") {
   "lights": [ { "type": "directional", "direction": [1, 1, 1] } ],
   "nodes": [ { "models": [ { "geometry": { "type": "sphere" }, "material": "red" } ] } ]
 })";
+}
+
+// The shared data folder `relative` (below RT_SHARED_DATA_DIR), or nullopt with a warning that the
+// corpus is skipped when it is absent.
+inline std::optional<std::filesystem::path> shared_dir(const std::filesystem::path& relative) {
+  const std::filesystem::path dir = std::filesystem::path(RT_SHARED_DATA_DIR) / relative;
+  std::error_code error;
+  if (std::filesystem::is_directory(dir, error)) return dir;
+  WARN("shared data not found at " << dir.string() << " (RT_SHARED_DATA_DIR): skipping that corpus");
+  return std::nullopt;
+}
+
+// The files below `dir` whose extension is one of `extensions` (".obj"), sorted.
+inline std::vector<std::filesystem::path> files_with(const std::filesystem::path& dir,
+                                                     const std::vector<std::string>& extensions) {
+  std::vector<std::filesystem::path> files;
+  for (const auto& entry : std::filesystem::recursive_directory_iterator(dir))
+    if (std::find(extensions.begin(), extensions.end(), entry.path().extension().string()) != extensions.end())
+      files.push_back(entry.path());
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+// `scene` rendered `width` pixels wide, its aspect ratio kept.
+inline rt::Scene at_width(rt::Scene scene, int width) {
+  scene.settings.height = std::max(1, int(std::lround(double(scene.settings.height) * width / scene.settings.width)));
+  scene.settings.width = width;
+  return scene;
 }
 
 }  // namespace rt_test

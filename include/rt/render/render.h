@@ -31,7 +31,8 @@ struct RenderOptions {
   RayOffset ray_offset{};
   EffectsOptions effects{};  // what may be skipped (exact pruning by default)
   // Estimate the share of render time per ray kind (RayCounts' tick counters) from one pixel in
-  // eight; costs about 1% of render time.
+  // eight; costs about 1% of render time. The timed pixels are shaded one by one (shade_camera_hit,
+  // not the batch shader), so the shares are those of that path.
   bool time_queries = false;
   // Shade the camera hits of plain materials a block at a time (BatchShader, vectorised). The image
   // and the counts are the same bit for bit either way; false runs shade_camera_hit for every pixel.
