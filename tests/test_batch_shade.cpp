@@ -172,12 +172,7 @@ TEST_CASE("batch shading changes no bit: the CSE167x corpus", "[batch][corpus]")
 }
 
 TEST_CASE("batch shading changes no bit: glTF and OBJ models at 120 pixels wide", "[batch][corpus]") {
-  const auto gltf = shared_dir(fs::path("data") / "models" / "gltf");
-  const auto obj = shared_dir(fs::path("data") / "models" / "obj");
-  std::vector<fs::path> files;
-  if (gltf) files = files_with(*gltf, {".gltf", ".glb"});
-  if (obj)
-    for (const fs::path& file : files_with(*obj, {".obj"})) files.push_back(file);
+  const std::vector<fs::path> files = rt_test::shared_model_files();
   for (const fs::path& file : files)
     check_batching_is_exact(at_width(rt::load_scene(file.string()), 120), file.filename().string());
 }

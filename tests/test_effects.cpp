@@ -159,12 +159,7 @@ TEST_CASE("pruning never changes the image: the CSE167x corpus", "[effects][corp
 }
 
 TEST_CASE("pruning never changes the image: glTF and OBJ models at 160 pixels wide", "[effects][corpus]") {
-  const auto gltf = shared_dir(fs::path("data") / "models" / "gltf");
-  const auto obj = shared_dir(fs::path("data") / "models" / "obj");
-  std::vector<fs::path> files;
-  if (gltf) files = files_with(*gltf, {".gltf", ".glb"});
-  if (obj)
-    for (const fs::path& file : files_with(*obj, {".obj"})) files.push_back(file);
+  const std::vector<fs::path> files = rt_test::shared_model_files();
   if (files.empty()) return;
   std::cout << "\n" << kTableHeader << "\n";
   for (const fs::path& file : files)

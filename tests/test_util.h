@@ -199,6 +199,16 @@ inline std::vector<std::filesystem::path> files_with(const std::filesystem::path
   return files;
 }
 
+// The shared glTF and OBJ models (data/models), glTF first; empty, with a warning, without them.
+inline std::vector<std::filesystem::path> shared_model_files() {
+  std::vector<std::filesystem::path> files;
+  if (const auto gltf = shared_dir(std::filesystem::path("data") / "models" / "gltf"))
+    files = files_with(*gltf, {".gltf", ".glb"});
+  if (const auto obj = shared_dir(std::filesystem::path("data") / "models" / "obj"))
+    for (const std::filesystem::path& file : files_with(*obj, {".obj"})) files.push_back(file);
+  return files;
+}
+
 // `scene` rendered `width` pixels wide, its aspect ratio kept.
 inline rt::Scene at_width(rt::Scene scene, int width) {
   scene.settings.height = std::max(1, int(std::lround(double(scene.settings.height) * width / scene.settings.width)));
