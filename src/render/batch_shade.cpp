@@ -8,9 +8,10 @@
 
 // Every expression below mirrors shade_surface's (and glm's: dot(a, b) = (ax bx + ay by) + az bz,
 // normalize(v) = v * (1 / sqrt(dot(v, v))), v / s divides each component) operation for
-// operation, so that vectorising the loops over lanes changes no bit: SIMD division and square
-// root are correctly rounded like the scalar ones, and nothing may be contracted into an FMA
-// (this file is compiled with -ffp-contract=off). pow stays the scalar libm call.
+// operation. The loops over lanes may therefore be vectorised without changing a bit (SIMD
+// division and square root are correctly rounded like the scalar ones), provided nothing is
+// contracted into an FMA (this file is compiled with -ffp-contract=off) and pow stays the scalar
+// libm call. GCC 12 does not vectorise them yet ("control flow in loop"; docs/performance.md).
 
 namespace rt {
 

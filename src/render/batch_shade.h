@@ -1,6 +1,6 @@
 #pragma once
 // Hits of plain materials shaded many at a time: shade_surface's arithmetic laid out over arrays
-// of hits (structure of arrays, world space, double) so that the compiler can vectorise it, with
+// of hits (structure of arrays, world space, double), one stage for all lanes after another, with
 // the same operations in the same order, so that every colour and every count is bit for bit
 // what shade_camera_hit and find_color give (tests/test_batch_shade.cpp renders scenes both ways).
 // The reflection rays of a block are traced depth by depth (a wavefront) and their hits shaded the
