@@ -3,6 +3,7 @@
 #include "catch.h"
 
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numbers>
 #include <algorithm>
@@ -147,6 +148,25 @@ TEST_CASE("camera rays of an oblique camera match the seed's formula", "[camera]
     const rt::CameraFrame frame = rt::make_camera_frame(camera, 3, 5, "test");
     const rt::Vec3d forward = glm::normalize(camera.target - camera.eye);
     check_close(rt::Vec3d(rt::ray_through_pixel(frame, 1, 2).direction), forward, 1e-7);
+  }
+}
+
+TEST_CASE("PixelCentreRays gives ray_through_pixel's rays bit for bit", "[camera]") {
+  const rt::Camera camera = make_camera({1.0, 2.0, 3.0}, {-0.5, 0.25, -1.0}, {0.3, 1.0, -0.2}, 50.0);
+  for (const auto& [width, height] : {std::pair{7, 4}, std::pair{3, 5}, std::pair{640, 480}}) {
+    INFO(width << "x" << height);
+    const rt::CameraFrame frame = rt::make_camera_frame(camera, width, height, "test");
+    const rt::PixelCentreRays centre_rays(frame);
+    int different = 0;
+    rt::Ray ray;
+    ray.tnear = 1.0f;  // set_ray must reset it
+    for (int j = 0; j < height; ++j)
+      for (int i = 0; i < width; ++i) {
+        centre_rays.set_ray(ray, i, j);
+        const rt::Ray expected = rt::ray_through_pixel(frame, i, j);
+        different += std::memcmp(&ray, &expected, sizeof ray) != 0;
+      }
+    CHECK(different == 0);
   }
 }
 

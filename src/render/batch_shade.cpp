@@ -5,6 +5,7 @@
 
 #include "rt/render/dielectric.h"
 #include "shading_margins.h"
+#include "shadow_records.h"
 
 // Every expression below mirrors shade_surface's (and glm's: dot(a, b) = (ax bx + ay by) + az bz,
 // normalize(v) = v * (1 / sqrt(dot(v, v))), v / s divides each component) operation for
@@ -282,33 +283,8 @@ void BatchShader::compute_light(Lanes& block, std::size_t j) const {
 
 namespace {
 
-// The camera pixel's terms, recorded for shadow packets (DeferredShadows of shade.cpp).
-struct DeferredSink {
-  PendingShading& pending;
-  RayCounts& counts;
-  std::size_t light_count;
-  // Records are written in place, field by field: a record built on the stack and then copied is
-  // read back wider than it was written, which stalls store forwarding (measured: ~10% of this code).
-  void lit(std::size_t, const Vec3d& term) {
-    PendingShading::Term& t = pending.terms.emplace_back();
-    t.term = term;
-    t.query = PendingShading::kNoQuery;
-  }
-  void query(std::size_t slot, const Vec3d& term, const Ray& shadow_ray) {
-    counts.add_shadow_query(light_count, slot);
-    PendingShading::Term& t = pending.terms.emplace_back();
-    t.term = term;
-    t.query = static_cast<std::uint32_t>(pending.shadow_rays.size());
-    Ray& ray = pending.shadow_rays.emplace_back();
-    ray.origin = shadow_ray.origin;
-    ray.direction = shadow_ray.direction;
-    ray.tnear = shadow_ray.tnear;
-    ray.tfar = shadow_ray.tfar;
-    pending.shadow_lights.push_back(static_cast<std::uint32_t>(slot));
-  }
-};
-
-// A reflection hit's terms, each shadow ray traced at once (ImmediateShadows of shade.cpp).
+// A reflection hit's terms, each shadow ray traced at once: shade.cpp's ImmediateShadows without
+// its trace and timing hooks, which the batch never runs with.
 struct ImmediateSink {
   const Accel& accel;
   RayCounts& counts;
@@ -392,7 +368,7 @@ std::int32_t BatchShader::shade_lane(const Lanes& lanes, int i, int depth, const
     skip(SkipRule::low_throughput);
     return -1;
   }
-  Secondary& secondary = next.emplace_back();  // in place, as DeferredSink's records
+  Secondary& secondary = next.emplace_back();  // in place, as ShadowRecorder's records
   secondary.ray.origin = Vec3f(lanes.reflection_origin.x[i], lanes.reflection_origin.y[i], lanes.reflection_origin.z[i]);
   secondary.ray.direction = Vec3f(lane(lanes.reflected, i));
   secondary.throughput = next_throughput;
@@ -412,7 +388,7 @@ void BatchShader::finish_camera_hit(Workspace& work, int k, const Ray& ray, cons
   PendingShading::Pixel& pixel = pending.pixels.emplace_back();  // in place: see PixelCentreRays::set_ray
   pixel.emission = materials_[work.lanes.material[std::size_t(i)]].emission;
   pixel.first_term = static_cast<std::uint32_t>(pending.terms.size());
-  DeferredSink sink{pending, counts, context_.scene.lights.size()};
+  ShadowRecorder sink{pending, counts, context_.scene.lights.size()};
   shade_lane(work.lanes, i, 0, ray, hit, Vec3d(1.0), index, counts, sink, work.waves[1]);
   pixel.term_count = static_cast<std::uint32_t>(pending.terms.size()) - pixel.first_term;
 }

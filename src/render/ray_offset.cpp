@@ -12,12 +12,9 @@ namespace rt {
 
 namespace {
 
-// Unit roundoff of float32, the precision of Embree's test and of the origin we hand it.
-constexpr double kFloatRoundoff = 0x1p-24;
-
-// Safety factor over the first-order error bound below (covers second-order terms and the
-// different but equally conditioned factorisations of Moller-Trumbore and Embree's Pluecker test).
-constexpr double kSafety = 8.0;
+using ray_offset_detail::kFloatRoundoff;
+using ray_offset_detail::kSafety;
+using ray_offset_detail::kScaledRoundoff;
 
 double max_abs_component(const Vec3d& v) { return std::max({std::abs(v.x), std::abs(v.y), std::abs(v.z)}); }
 
@@ -79,7 +76,7 @@ SurfacePoint make_surface_point(const Vec3d& p0, const Vec3d& p1, const Vec3d& p
   SurfacePoint surface;
   surface.point = (1.0 - b1 - b2) * p0 + b1 * p1 + b2 * p2;
   surface.geometric_normal = frame.geometric_normal;
-  surface.error_bound = kSafety * kFloatRoundoff * (std::sqrt(3.0) * max_abs_component(surface.point) + frame.edge_term);
+  surface.error_bound = kScaledRoundoff * (std::sqrt(3.0) * max_abs_component(surface.point) + frame.edge_term);
   return surface;
 }
 

@@ -105,6 +105,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   result.tile_done.assign(std::size_t(tile_count), 0);
   constexpr int kBlock = 4;  // camera rays are traced in blocks of kBlock x kBlock pixels (see render_block)
   constexpr int kBlockPixels = kBlock * kBlock;
+  static_assert(kBlockPixels <= BatchShader::kLanes, "a block's camera hits must fit the batch shader's lanes");
   struct ThreadState {
     RayCounts counts;
     // Buffers of the camera blocks, reused from block to block.

@@ -15,6 +15,7 @@
 #include "rt/render/sampling.h"
 #include "rt/render/surface_maps.h"
 #include "shading_margins.h"
+#include "shadow_records.h"
 
 namespace rt {
 
@@ -152,22 +153,12 @@ struct ImmediateShadows {
   void add_reflection(const Vec3d& reflection) { radiance += reflection; }
 };
 
-struct DeferredShadows {
-  PendingShading& pending;
-  RayCounts& counts;
-  std::size_t light_count;  // Scene::lights.size()
+struct DeferredShadows : ShadowRecorder {
   PendingShading::Pixel pixel{};
 
   void begin(const Vec3d& emission) {
     pixel.emission = emission;
     pixel.first_term = static_cast<std::uint32_t>(pending.terms.size());
-  }
-  void lit(std::size_t, const Vec3d& term, int = 0) { pending.terms.push_back({term, PendingShading::kNoQuery}); }
-  [[gnu::always_inline]] void query(std::size_t slot, const Vec3d& term, const Ray& shadow_ray, int = 0) {
-    counts.add_shadow_query(light_count, slot);
-    pending.terms.push_back({term, static_cast<std::uint32_t>(pending.shadow_rays.size())});
-    pending.shadow_rays.push_back(shadow_ray);
-    pending.shadow_lights.push_back(static_cast<std::uint32_t>(slot));
   }
   void add_reflection(const Vec3d& reflection) {  // the reflection, then a blended surface's see-through ray
     pixel.reflection = pixel.has_reflection ? pixel.reflection + reflection : reflection;
@@ -595,7 +586,7 @@ void PendingShading::clear() {
 
 void shade_camera_hit(const ShadingContext& context, const Ray& ray, const Hit& hit, std::uint64_t path_seed,
                       RayCounts& counts, PendingShading& pending) {
-  DeferredShadows shadows{pending, counts, context.scene.lights.size()};
+  DeferredShadows shadows{{pending, counts, context.scene.lights.size()}};
   if (hit.found()) {
     shade_surface(context, ray, hit, 0, counts, Vec3d(1.0), path_seed, shadows);
     shadows.pixel.term_count = static_cast<std::uint32_t>(pending.terms.size()) - shadows.pixel.first_term;

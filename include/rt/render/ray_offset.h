@@ -80,9 +80,12 @@ inline float round_away(double p, double away) {
   return f;
 }
 
-// Unit roundoff of float32 (the precision of Embree's test and of the origins we hand it) times
-// the safety factor over the first-order error bounds (see ray_offset.cpp).
-inline constexpr double kScaledRoundoff = 8.0 * 0x1p-24;
+// Unit roundoff of float32, the precision of Embree's test and of the origins we hand it.
+inline constexpr double kFloatRoundoff = 0x1p-24;
+// Safety factor over the first-order error bounds of ray_offset.cpp (covers second-order terms and
+// the different but equally conditioned factorisations of Moller-Trumbore and Embree's Pluecker test).
+inline constexpr double kSafety = 8.0;
+inline constexpr double kScaledRoundoff = kSafety * kFloatRoundoff;
 
 // shadow_ray_tfar's robust value for a ray of length `distance` towards a light whose largest
 // coordinate magnitude is `light_extent` (world units).

@@ -34,8 +34,9 @@ struct RenderOptions {
   // eight; costs about 1% of render time. The timed pixels are shaded one by one (shade_camera_hit,
   // not the batch shader), so the shares are those of that path.
   bool time_queries = false;
-  // Shade the camera hits of plain materials a block at a time (BatchShader, vectorised). The image
-  // and the counts are the same bit for bit either way; false runs shade_camera_hit for every pixel.
+  // Shade the camera and reflection hits of plain materials a block at a time (the batch shader,
+  // src/render/batch_shade.h). The image and the counts are the same bit for bit either way; false
+  // runs shade_camera_hit and find_color for every pixel.
   bool batch_shading = true;
   // Called from worker threads (serialised) with the fraction of tiles done, in [0, 1].
   std::function<void(double)> on_progress;
