@@ -9,6 +9,8 @@
 #include <filesystem>
 #include <memory>
 #include <optional>
+#include <random>
+#include <span>
 #include <string>
 
 #include <fmt/format.h>
@@ -18,6 +20,7 @@
 #include "rt/accel/accel.h"
 #include "rt/flatten/flatten.h"
 #include "rt/io/load_scene.h"
+#include "rt/render/ray_offset.h"
 #include "rt/render/render.h"
 #include "rt/scene/shapes.h"
 #include "test_util.h"
@@ -175,4 +178,90 @@ TEST_CASE("batch shading changes no bit: glTF and OBJ models at 120 pixels wide"
   const std::vector<fs::path> files = rt_test::shared_model_files();
   for (const fs::path& file : files)
     check_batching_is_exact(at_width(rt::load_scene(file.string()), 120), file.filename().string());
+}
+
+// The lanes themselves against the scalar functions they mirror: for random hits on random
+// triangles (near the origin, far from it, axis-aligned ones whose points have zero and exactly
+// representable coordinates), every surface point, reflection origin, shadow origin and shadow
+// tfar must be make_surface_point's, offset_ray_origin's and shadow_ray_tfar's bit for bit. The
+// images above could miss a wrong last bit of an origin; this cannot.
+TEST_CASE("batch shading lanes equal the scalar ray offsets bit for bit", "[batch]") {
+  std::mt19937_64 random(20261204);
+  const auto uniform = [&](double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(random); };
+  std::vector<std::array<rt::Vec3f, 3>> corners;
+  for (const double scale : {1.0, 1e-3, 1e4}) {
+    const rt::Vec3d centre(uniform(-1, 1) * scale, uniform(-1, 1) * scale, uniform(-1, 1) * scale);
+    for (int t = 0; t < 64; ++t) {
+      std::array<rt::Vec3f, 3> c;
+      for (rt::Vec3f& p : c)
+        p = rt::Vec3f(centre + scale * rt::Vec3d(uniform(-1, 1), uniform(-1, 1), uniform(-1, 1)));
+      corners.push_back(c);
+    }
+  }
+  for (int t = 0; t < 16; ++t) {  // in the plane z = 0, at integer corners
+    const float a = float(t % 4), b = float(t / 4);
+    corners.push_back({rt::Vec3f(a, b, 0), rt::Vec3f(a + 1, b, 0), rt::Vec3f(a, b + 1, 0)});
+  }
+  rt::TriangleMesh mesh = rt_test::make_flat_mesh(corners);
+  for (rt::Vec3f& n : mesh.normals) n = glm::normalize(rt::Vec3f(uniform(-1, 1), uniform(-1, 1), uniform(0.1, 1)));
+  rt::Scene scene = rt_test::make_scene({{mesh, 0}});
+  scene.materials = {phong(0.7f, 0.3f, 40.0f)};
+  scene.materials[0].back_face = rt::BackFace::flipped;
+  scene.lights = {point_light({0.5, 2.0, 1.5}, 1.0f, {1.0, 0.3, 0.1}), point_light({-3e4, 1e4, 2e4}, 0.5f)};
+  rt::Light sun;
+  sun.position = rt::Vec4d(glm::normalize(rt::Vec3d(0.3, 1.0, -0.2)), 0.0);
+  sun.color = rt::Color(0.3f);
+  scene.lights.push_back(sun);
+  const rt::FlatScene flat = rt::flatten_scene(scene);
+  const auto accel = rt::build_accel(rt::AccelKind::embree, flat, {});
+
+  for (const rt::RayOffset& policy : {rt::RayOffset{}, rt::RayOffset{rt::RayOffset::Mode::fixed, 1e-4}}) {
+    INFO(rt::to_string(policy));
+    const rt::EffectsPlan plan = rt::plan_effects(scene, flat, policy, {});
+    const rt::ShadingContext context{scene, flat, *accel, plan, policy};
+    const rt::BatchShader shader(context);
+    REQUIRE(shader.enabled());
+    rt::BatchShader::Workspace work;
+    int compared = 0;
+    for (int block = 0; block < 200; ++block) {
+      const int count = 1 + block % rt::BatchShader::kLanes;  // every lane count, tails included
+      std::vector<rt::Ray> rays(static_cast<std::size_t>(count));
+      std::vector<rt::Hit> hits(static_cast<std::size_t>(count));
+      for (int i = 0; i < count; ++i) {
+        rt::Hit& hit = hits[std::size_t(i)];
+        hit.primitive = std::uint32_t(random() % flat.triangle_count());
+        hit.u = float(uniform(0, 1));
+        hit.v = float(uniform(0, 1 - double(hit.u)));
+        hit.t = 1.0f;
+        rays[std::size_t(i)].direction = rt::Vec3f(uniform(-1, 1), uniform(-1, 1), uniform(-1, -0.1));
+      }
+      const std::array<bool, rt::BatchShader::kLanes> unbatched{};
+      shader.prepare(rays, hits, std::span(unbatched.data(), std::size_t(count)), work);
+      const rt::BatchShader::Lanes& lanes = work.lanes;
+      REQUIRE(lanes.count == count);
+      const auto v3 = [](const auto& v, int i) { return rt::Vec3d(v.x.v[i], v.y.v[i], v.z.v[i]); };
+      const auto f3 = [](const auto& v, int i) { return rt::Vec3f(v.x[i], v.y[i], v.z[i]); };
+      const auto same = [](const auto& a, const auto& b) { return std::memcmp(&a, &b, sizeof a) == 0; };
+      for (int i = 0; i < count; ++i) {
+        const rt::Vec3u tri = flat.triangles[hits[std::size_t(i)].primitive];
+        const rt::SurfacePoint surface =
+            rt::make_surface_point(rt::Vec3d(flat.positions[tri.x]), rt::Vec3d(flat.positions[tri.y]),
+                                   rt::Vec3d(flat.positions[tri.z]), hits[std::size_t(i)].u, hits[std::size_t(i)].v);
+        CHECK(same(v3(lanes.point, i), surface.point));
+        CHECK(same(v3(lanes.geometric_normal, i), surface.geometric_normal));
+        CHECK(same(lanes.error_bound.v[i], surface.error_bound));
+        CHECK(same(f3(lanes.reflection_origin, i), rt::offset_ray_origin(policy, surface, v3(lanes.reflected, i))));
+        for (std::size_t j = 0; j < scene.lights.size(); ++j) {
+          const rt::BatchShader::Lanes::Light& light = lanes.lights[j];
+          const rt::Vec3f origin = rt::offset_ray_origin(policy, surface, v3(light.to_light, i));
+          CHECK(same(f3(light.shadow_origin, i), origin));
+          if (!scene.lights[j].is_directional())
+            CHECK(same(light.shadow_distance.v[i],
+                       rt::shadow_ray_tfar(policy, rt::Vec3d(origin), rt::Vec3d(scene.lights[j].position))));
+        }
+        ++compared;
+      }
+    }
+    CHECK(compared > 1000);
+  }
 }

@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include "rt/render/dielectric.h"
+#include "lane_math.h"
 #include "shading_margins.h"
 #include "shadow_records.h"
 
@@ -93,14 +95,234 @@ void BatchShader::prepare(std::span<const Ray> rays, std::span<const Hit> hits, 
   work.waves[1].clear();
 }
 
+namespace {
+
+namespace lm = lane_math;
+using lm::D4;
+using lm::F4;
+using lm::M4;
+constexpr int kLanes = BatchShader::kLanes;
+using Lanes = BatchShader::Lanes;
+
+// A triangle hit's inputs, gathered lane by lane: vertices and vertex normals (float32 widened to
+// double, world space), the unit-less ray direction, the barycentrics and the back-face flip.
+struct Gathered {
+  Gathered() {}  // not zeroed: every lane in use is written
+  Vec3Lanes<kLanes> p0, p1, p2, n0, n1, n2, d;
+  LaneArray<kLanes> b1, b2;
+  alignas(32) std::int64_t flip[kLanes];  // all ones: BackFace::flipped
+};
+
+struct OriginPolicy {
+  bool fixed = false;     // RayOffset::Mode::fixed
+  double epsilon = 0.0;  // its distance
+};
+
+// What compute_light_lanes reads of one light (world space, double).
+struct LightLanes {
+  bool directional = false, spot = false;
+  Vec3d position{0.0}, to_light{0.0}, color{0.0}, attenuation{0.0}, spot_direction{0.0};
+  double spot_cos_outer = 0.0, cone_width = 0.0;
+  double extent = 0.0;  // the largest coordinate magnitude of the position (robust_shadow_tfar)
+};
+
+struct Xyz {
+  D4 x, y, z;
+};
+
+[[gnu::always_inline]] inline void load(Xyz& out, const Vec3Lanes<kLanes>& v, int g) {
+  lm::load(out.x, v.x.v + g);
+  lm::load(out.y, v.y.v + g);
+  lm::load(out.z, v.z.v + g);
+}
+
+[[gnu::always_inline]] inline void store(Vec3Lanes<kLanes>& to, int g, const D4& x, const D4& y, const D4& z) {
+  lm::store(to.x.v + g, x);
+  lm::store(to.y.v + g, y);
+  lm::store(to.z.v + g, z);
+}
+
+[[gnu::always_inline]] inline void load_mask(M4& out, const std::int64_t* p) { std::memcpy(&out, p, sizeof out); }
+
+// offset_ray_origin for lanes g..g+3 along directions whose dot product with the geometric normal
+// is `cosine`: off the surface along the normal, to the side the ray goes.
+[[gnu::always_inline]] inline void set_origins(const Lanes& block, int g, const D4& cosine, const OriginPolicy& policy,
+                                               Vec3fLanes<kLanes>& origin) {
+  const D4 sign = lm::select(cosine >= D4{}, lm::broadcast(1.0), lm::broadcast(-1.0));  // n or -n, exactly
+  Xyz n, p;
+  load(n, block.geometric_normal, g);
+  load(p, block.point, g);
+  const D4 sx = sign * n.x, sy = sign * n.y, sz = sign * n.z;
+  if (policy.fixed) {
+    const D4 epsilon = lm::broadcast(policy.epsilon);
+    lm::store(origin.x + g, lm::to_float(p.x + epsilon * sx));
+    lm::store(origin.y + g, lm::to_float(p.y + epsilon * sy));
+    lm::store(origin.z + g, lm::to_float(p.z + epsilon * sz));
+    return;
+  }
+  D4 bound;
+  lm::load(bound, block.error_bound.v + g);
+  lm::store(origin.x + g, lm::round_away(p.x + bound * sx, sx));
+  lm::store(origin.y + g, lm::round_away(p.y + bound * sy, sy));
+  lm::store(origin.z + g, lm::round_away(p.z + bound * sz, sz));
+}
+
+// make_surface_point, the shading normal (interpolated, unit, flipped towards the viewer on a
+// two-sided back face), the unit direction and the reflection ray, for block.count lanes.
+void compute_surface_lanes(const Gathered& in, const OriginPolicy& policy, Lanes& block) {
+  const D4 zero{}, one = lm::broadcast(1.0);
+  for (int g = 0; g < block.count; g += 4) {
+    D4 b1, b2;
+    lm::load(b1, in.b1.v + g);
+    lm::load(b2, in.b2.v + g);
+    const D4 w0 = one - b1 - b2;
+    Xyz p0, p1, p2;
+    load(p0, in.p0, g);
+    load(p1, in.p1, g);
+    load(p2, in.p2, g);
+    const D4 px = w0 * p0.x + b1 * p1.x + b2 * p2.x;
+    const D4 py = w0 * p0.y + b1 * p1.y + b2 * p2.y;
+    const D4 pz = w0 * p0.z + b1 * p1.z + b2 * p2.z;
+    store(block.point, g, px, py, pz);
+    const D4 e1x = p1.x - p0.x, e1y = p1.y - p0.y, e1z = p1.z - p0.z;
+    const D4 e2x = p2.x - p0.x, e2y = p2.y - p0.y, e2z = p2.z - p0.z;
+    const D4 e3x = p2.x - p1.x, e3y = p2.y - p1.y, e3z = p2.z - p1.z;
+    const D4 cx = e1y * e2z - e2y * e1z, cy = e1z * e2x - e2z * e1x, cz = e1x * e2y - e2x * e1y;
+    const D4 area2 = lm::sqrt(cx * cx + cy * cy + cz * cz);
+    const M4 has_area = area2 > zero;
+    const D4 gx = lm::select(has_area, cx / area2, zero), gy = lm::select(has_area, cy / area2, zero),
+             gz = lm::select(has_area, cz / area2, zero);
+    store(block.geometric_normal, g, gx, gy, gz);
+    const D4 l1 = lm::sqrt(e1x * e1x + e1y * e1y + e1z * e1z);
+    const D4 l2 = lm::sqrt(e2x * e2x + e2y * e2y + e2z * e2z);
+    const D4 l3 = lm::sqrt(e3x * e3x + e3y * e3y + e3z * e3z);
+    const D4 kappa = lm::select(has_area, l1 * l2 / area2, one);
+    const D4 longest = lm::max(lm::max(l1, l2), l3);
+    const D4 largest = lm::max(lm::max(lm::abs(px), lm::abs(py)), lm::abs(pz));
+    lm::store(block.error_bound.v + g, lm::broadcast(kScaledRoundoff) * (lm::broadcast(std::sqrt(3.0)) * largest +
+                                                                         (lm::broadcast(4.0) + lm::broadcast(2.0) * kappa) * longest));
+
+    Xyz n0, n1, n2, d;
+    load(n0, in.n0, g);
+    load(n1, in.n1, g);
+    load(n2, in.n2, g);
+    load(d, in.d, g);
+    const D4 nx = w0 * n0.x + b1 * n1.x + b2 * n2.x;
+    const D4 ny = w0 * n0.y + b1 * n1.y + b2 * n2.y;
+    const D4 nz = w0 * n0.z + b1 * n1.z + b2 * n2.z;
+    const D4 n_scale = one / lm::sqrt(nx * nx + ny * ny + nz * nz);
+    const D4 d_scale = one / lm::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+    const D4 ux = d.x * d_scale, uy = d.y * d_scale, uz = d.z * d_scale;
+    store(block.direction, g, ux, uy, uz);
+    // A two-sided surface seen from behind: dot(geometric normal, to_eye) < 0, to_eye = -direction.
+    const D4 facing = gx * -ux + gy * -uy + gz * -uz;
+    M4 flip;
+    load_mask(flip, in.flip + g);
+    const D4 sign = lm::select(flip & (facing < zero), lm::broadcast(-1.0), one);  // -x is x * -1 exactly
+    const D4 sx = sign * (nx * n_scale), sy = sign * (ny * n_scale), sz = sign * (nz * n_scale);
+    store(block.normal, g, sx, sy, sz);
+
+    // The reflection ray: reflect_direction and offset_ray_origin.
+    const D4 twice = lm::broadcast(2.0) * (ux * sx + uy * sy + uz * sz);
+    const D4 rx = ux - twice * sx, ry = uy - twice * sy, rz = uz - twice * sz;
+    store(block.reflected, g, rx, ry, rz);
+    set_origins(block, g, gx * rx + gy * ry + gz * rz, policy, block.reflection_origin);
+  }
+}
+
+// One light's direction, unshadowed intensity, n.l, n.h, geometric cosine and shadow ray at
+// block.count lanes (shade_surface's, before the pow of the highlight).
+void compute_light_lanes(const LightLanes& light, const OriginPolicy& policy, const Lanes& block, Lanes::Light& out,
+                         Vec3Lanes<kLanes>& intensity, LaneArray<kLanes>& n_dot_l, LaneArray<kLanes>& n_dot_h) {
+  const D4 zero{};
+  for (int g = 0; g < block.count; g += 4) {
+    D4 lx = lm::broadcast(light.to_light.x), ly = lm::broadcast(light.to_light.y), lz = lm::broadcast(light.to_light.z);
+    D4 ir = lm::broadcast(light.color.r), ig = lm::broadcast(light.color.g), ib = lm::broadcast(light.color.b);
+    M4 on_point{};
+    if (!light.directional) {
+      Xyz p;
+      load(p, block.point, g);
+      const D4 ox = lm::broadcast(light.position.x) - p.x, oy = lm::broadcast(light.position.y) - p.y,
+               oz = lm::broadcast(light.position.z) - p.z;
+      const D4 distance = lm::sqrt(ox * ox + oy * oy + oz * oz);
+      on_point = ~(distance > zero);
+      lx = ox / distance, ly = oy / distance, lz = oz / distance;
+      const D4 attenuation = lm::broadcast(light.attenuation.x) + lm::broadcast(light.attenuation.y) * distance +
+                             lm::broadcast(light.attenuation.z) * distance * distance;
+      ir /= attenuation, ig /= attenuation, ib /= attenuation;
+      if (light.spot) {
+        const D4 along = lm::broadcast(light.spot_direction.x) * -lx + lm::broadcast(light.spot_direction.y) * -ly +
+                         lm::broadcast(light.spot_direction.z) * -lz;
+        const D4 cone = lm::clamp((along - lm::broadcast(light.spot_cos_outer)) / lm::broadcast(light.cone_width), zero,
+                                  lm::broadcast(1.0));
+        ir *= cone * cone, ig *= cone * cone, ib *= cone * cone;
+      }
+    }
+    std::memcpy(out.on_point.data() + g, &on_point, sizeof on_point);
+    store(out.to_light, g, lx, ly, lz);
+    store(intensity, g, ir, ig, ib);
+    Xyz n, d, gn;
+    load(n, block.normal, g);
+    load(d, block.direction, g);
+    load(gn, block.geometric_normal, g);
+    const D4 hx = lx + -d.x, hy = ly + -d.y, hz = lz + -d.z;
+    const D4 half_length = lm::sqrt(hx * hx + hy * hy + hz * hz);
+    lm::store(n_dot_l.v + g, lm::max(n.x * lx + n.y * ly + n.z * lz, zero));
+    lm::store(n_dot_h.v + g, lm::select(half_length > zero, lm::max((n.x * hx + n.y * hy + n.z * hz) / half_length, zero),
+                                        zero));
+    const D4 cosine = gn.x * lx + gn.y * ly + gn.z * lz;
+    lm::store(out.geometric_cosine.v + g, cosine);
+
+    // The shadow ray: offset_ray_origin along to_light, shadow_ray_tfar from the float32 origin.
+    set_origins(block, g, cosine, policy, out.shadow_origin);
+    if (light.directional) {
+      lm::store(out.shadow_distance.v + g, lm::broadcast(double(kInfinity)));
+      continue;
+    }
+    F4 fx, fy, fz;
+    lm::load(fx, out.shadow_origin.x + g);
+    lm::load(fy, out.shadow_origin.y + g);
+    lm::load(fz, out.shadow_origin.z + g);
+    const D4 ox = lm::broadcast(light.position.x) - lm::to_double(fx), oy = lm::broadcast(light.position.y) - lm::to_double(fy),
+             oz = lm::broadcast(light.position.z) - lm::to_double(fz);
+    const D4 distance = lm::sqrt(ox * ox + oy * oy + oz * oz);
+    lm::store(out.shadow_distance.v + g,
+              policy.fixed ? distance - lm::broadcast(policy.epsilon)
+                           : distance - lm::broadcast(kScaledRoundoff) * (lm::broadcast(std::sqrt(3.0)) * lm::broadcast(light.extent) +
+                                                                          lm::broadcast(4.0) * distance));
+  }
+}
+
+// The light term at block.count lanes: intensity (ambient + diffuse n.l + specular pow(n.h, s)),
+// the highlight Vec3d(0.0) where it is skipped.
+void compute_term_lanes(const Lanes& block, const Vec3Lanes<kLanes>& intensity, const LaneArray<kLanes>& n_dot_l,
+                        const LaneArray<kLanes>& power, Lanes::Light& out) {
+  const D4 zero{};
+  for (int g = 0; g < block.count; g += 4) {
+    M4 highlight;
+    load_mask(highlight, block.highlight.data() + g);
+    D4 ndl, pw;
+    lm::load(ndl, n_dot_l.v + g);
+    lm::load(pw, power.v + g);
+    Xyz in, ambient, diffuse, specular;
+    load(in, intensity, g);
+    load(ambient, block.ambient, g);
+    load(diffuse, block.diffuse, g);
+    load(specular, block.specular, g);
+    const D4 hr = lm::select(highlight, specular.x * pw, zero), hg = lm::select(highlight, specular.y * pw, zero),
+             hb = lm::select(highlight, specular.z * pw, zero);
+    store(out.term, g, in.x * (ambient.x + diffuse.x * ndl + hr), in.y * (ambient.y + diffuse.y * ndl + hg),
+          in.z * (ambient.z + diffuse.z * ndl + hb));
+  }
+}
+
+}  // namespace
+
 void BatchShader::compute_surfaces(Lanes& block, const std::array<Ray, kLanes>& rays,
                                    const std::array<Hit, kLanes>& hits) const {
   const FlatScene& flat = context_.flat;
   const int lanes = block.count;
-  // Gathered: the triangle's vertices and vertex normals, float32 widened to double.
-  Vec3Lanes<kLanes> p0, p1, p2, n0, n1, n2, d;
-  LaneArray<kLanes> b1, b2;
-  std::array<bool, kLanes> flip{};
+  Gathered in;
   // Indices first, then vertices: each loop's loads are independent, so their cache misses overlap.
   std::array<Vec3u, kLanes> triangles;
   for (int i = 0; i < lanes; ++i) triangles[std::size_t(i)] = flat.triangles[hits[std::size_t(i)].primitive];
@@ -112,173 +334,69 @@ void BatchShader::compute_surfaces(Lanes& block, const std::array<Ray, kLanes>& 
       to.y.v[i] = from.y;
       to.z.v[i] = from.z;
     };
-    put(p0, flat.positions[tri.x]);
-    put(p1, flat.positions[tri.y]);
-    put(p2, flat.positions[tri.z]);
-    put(n0, flat.normals[tri.x]);
-    put(n1, flat.normals[tri.y]);
-    put(n2, flat.normals[tri.z]);
-    put(d, rays[std::size_t(i)].direction);
-    b1.v[i] = hit.u;
-    b2.v[i] = hit.v;
+    put(in.p0, flat.positions[tri.x]);
+    put(in.p1, flat.positions[tri.y]);
+    put(in.p2, flat.positions[tri.z]);
+    put(in.n0, flat.normals[tri.x]);
+    put(in.n1, flat.normals[tri.y]);
+    put(in.n2, flat.normals[tri.z]);
+    put(in.d, rays[std::size_t(i)].direction);
+    in.b1.v[i] = hit.u;
+    in.b2.v[i] = hit.v;
     const std::uint32_t material = flat.material_ids[hit.primitive];
     block.material[std::size_t(i)] = material;
     const PlainMaterial& plain = materials_[material];
-    flip[std::size_t(i)] = plain.flip_back_face;
+    in.flip[i] = plain.flip_back_face ? -1 : 0;
     block.ambient.x.v[i] = plain.ambient.x, block.ambient.y.v[i] = plain.ambient.y, block.ambient.z.v[i] = plain.ambient.z;
     block.diffuse.x.v[i] = plain.diffuse.x, block.diffuse.y.v[i] = plain.diffuse.y, block.diffuse.z.v[i] = plain.diffuse.z;
     block.specular.x.v[i] = plain.specular.x, block.specular.y.v[i] = plain.specular.y,
     block.specular.z.v[i] = plain.specular.z;
     block.shininess.v[i] = plain.shininess;
-    block.highlight[std::size_t(i)] = plain.highlight;
+    block.highlight[std::size_t(i)] = plain.highlight ? -1 : 0;
   }
-
-  // make_surface_point: the point, the geometric normal and the offset bound.
-  for (int i = 0; i < lanes; ++i) {
-    const double w1 = b1.v[i], w2 = b2.v[i], w0 = 1.0 - w1 - w2;
-    block.point.x.v[i] = w0 * p0.x.v[i] + w1 * p1.x.v[i] + w2 * p2.x.v[i];
-    block.point.y.v[i] = w0 * p0.y.v[i] + w1 * p1.y.v[i] + w2 * p2.y.v[i];
-    block.point.z.v[i] = w0 * p0.z.v[i] + w1 * p1.z.v[i] + w2 * p2.z.v[i];
-    const double e1x = p1.x.v[i] - p0.x.v[i], e1y = p1.y.v[i] - p0.y.v[i], e1z = p1.z.v[i] - p0.z.v[i];
-    const double e2x = p2.x.v[i] - p0.x.v[i], e2y = p2.y.v[i] - p0.y.v[i], e2z = p2.z.v[i] - p0.z.v[i];
-    const double e3x = p2.x.v[i] - p1.x.v[i], e3y = p2.y.v[i] - p1.y.v[i], e3z = p2.z.v[i] - p1.z.v[i];
-    const double cx = e1y * e2z - e2y * e1z, cy = e1z * e2x - e2z * e1x, cz = e1x * e2y - e2x * e1y;
-    const double area2 = std::sqrt(cx * cx + cy * cy + cz * cz);
-    const bool has_area = area2 > 0.0;
-    block.geometric_normal.x.v[i] = has_area ? cx / area2 : 0.0;
-    block.geometric_normal.y.v[i] = has_area ? cy / area2 : 0.0;
-    block.geometric_normal.z.v[i] = has_area ? cz / area2 : 0.0;
-    const double l1 = std::sqrt(e1x * e1x + e1y * e1y + e1z * e1z);
-    const double l2 = std::sqrt(e2x * e2x + e2y * e2y + e2z * e2z);
-    const double l3 = std::sqrt(e3x * e3x + e3y * e3y + e3z * e3z);
-    const double kappa = has_area ? l1 * l2 / area2 : 1.0;
-    const double longest = std::max(std::max(l1, l2), l3);
-    const double largest = std::max(std::max(std::abs(block.point.x.v[i]), std::abs(block.point.y.v[i])),
-                                    std::abs(block.point.z.v[i]));
-    block.error_bound.v[i] = kScaledRoundoff * (std::sqrt(3.0) * largest + (4.0 + 2.0 * kappa) * longest);
+  // Lanes past the count (up to the next multiple of 4) are computed and never read: give them a
+  // copy of lane 0, so that no uninitialised value enters the arithmetic.
+  for (int i = lanes; i % 4 != 0; ++i) {
+    const auto copy = [i](Vec3Lanes<kLanes>& v) {
+      v.x.v[i] = v.x.v[0];
+      v.y.v[i] = v.y.v[0];
+      v.z.v[i] = v.z.v[0];
+    };
+    for (Vec3Lanes<kLanes>* v : {&in.p0, &in.p1, &in.p2, &in.n0, &in.n1, &in.n2, &in.d, &block.ambient, &block.diffuse,
+                                 &block.specular})
+      copy(*v);
+    in.b1.v[i] = in.b1.v[0], in.b2.v[i] = in.b2.v[0], in.flip[i] = in.flip[0];
+    block.shininess.v[i] = block.shininess.v[0];
+    block.highlight[std::size_t(i)] = block.highlight[0];
   }
-
-  // The interpolated shading normal and the unit ray direction.
-  for (int i = 0; i < lanes; ++i) {
-    const double w1 = b1.v[i], w2 = b2.v[i], w0 = 1.0 - w1 - w2;
-    const double nx = w0 * n0.x.v[i] + w1 * n1.x.v[i] + w2 * n2.x.v[i];
-    const double ny = w0 * n0.y.v[i] + w1 * n1.y.v[i] + w2 * n2.y.v[i];
-    const double nz = w0 * n0.z.v[i] + w1 * n1.z.v[i] + w2 * n2.z.v[i];
-    const double n_scale = 1.0 / std::sqrt(nx * nx + ny * ny + nz * nz);
-    const double dx = d.x.v[i], dy = d.y.v[i], dz = d.z.v[i];
-    const double d_scale = 1.0 / std::sqrt(dx * dx + dy * dy + dz * dz);
-    const double ux = dx * d_scale, uy = dy * d_scale, uz = dz * d_scale;
-    block.direction.x.v[i] = ux;
-    block.direction.y.v[i] = uy;
-    block.direction.z.v[i] = uz;
-    // A two-sided surface seen from behind: dot(geometric normal, to_eye) < 0, to_eye = -direction.
-    const double facing = block.geometric_normal.x.v[i] * -ux + block.geometric_normal.y.v[i] * -uy +
-                          block.geometric_normal.z.v[i] * -uz;
-    const double sign = flip[std::size_t(i)] && facing < 0.0 ? -1.0 : 1.0;  // -x is x * -1 exactly
-    block.normal.x.v[i] = sign * (nx * n_scale);
-    block.normal.y.v[i] = sign * (ny * n_scale);
-    block.normal.z.v[i] = sign * (nz * n_scale);
-  }
-
-  // The reflection ray: reflect_direction and offset_ray_origin.
-  for (int i = 0; i < lanes; ++i) {
-    const double dx = block.direction.x.v[i], dy = block.direction.y.v[i], dz = block.direction.z.v[i];
-    const double nx = block.normal.x.v[i], ny = block.normal.y.v[i], nz = block.normal.z.v[i];
-    const double twice = 2.0 * (dx * nx + dy * ny + dz * nz);
-    const double rx = dx - twice * nx, ry = dy - twice * ny, rz = dz - twice * nz;
-    block.reflected.x.v[i] = rx, block.reflected.y.v[i] = ry, block.reflected.z.v[i] = rz;
-    const double cosine = block.geometric_normal.x.v[i] * rx + block.geometric_normal.y.v[i] * ry +
-                          block.geometric_normal.z.v[i] * rz;
-    set_origin(block, i, cosine, block.reflection_origin);
-  }
-}
-
-void BatchShader::set_origin(const Lanes& block, int i, double cosine, Vec3fLanes<kLanes>& origin) const {
-  // offset_ray_origin: off the surface along the geometric normal, to the side the ray goes.
-  const double sign = cosine >= 0.0 ? 1.0 : -1.0;  // n or -n: multiplying by -1 negates exactly
-  const double sx = sign * block.geometric_normal.x.v[i], sy = sign * block.geometric_normal.y.v[i],
-               sz = sign * block.geometric_normal.z.v[i];
-  const double px = block.point.x.v[i], py = block.point.y.v[i], pz = block.point.z.v[i];
-  if (context_.ray_offset.mode == RayOffset::Mode::fixed) {
-    const double epsilon = context_.ray_offset.epsilon;
-    origin.x[i] = float(px + epsilon * sx), origin.y[i] = float(py + epsilon * sy), origin.z[i] = float(pz + epsilon * sz);
-    return;
-  }
-  const double bound = block.error_bound.v[i];
-  origin.x[i] = ray_offset_detail::round_away(px + bound * sx, sx);
-  origin.y[i] = ray_offset_detail::round_away(py + bound * sy, sy);
-  origin.z[i] = ray_offset_detail::round_away(pz + bound * sz, sz);
+  compute_surface_lanes(in, OriginPolicy{context_.ray_offset.mode == RayOffset::Mode::fixed, context_.ray_offset.epsilon},
+                        block);
 }
 
 void BatchShader::compute_light(Lanes& block, std::size_t j) const {
   const Light& light = context_.scene.lights[j];
   const LightPlan& plan = context_.plan.lights[j];
+  LightLanes params;
+  params.directional = light.is_directional();
+  params.spot = light.is_spot();
+  params.position = Vec3d(light.position);
+  params.to_light = plan.to_light;
+  params.color = plan.color;
+  params.attenuation = light.attenuation;
+  params.spot_direction = light.spot_direction;
+  params.spot_cos_outer = light.spot_cos_outer;
+  params.cone_width = std::max(light.spot_cos_inner - light.spot_cos_outer, 1e-3);
+  params.extent = std::max({std::abs(params.position.x), std::abs(params.position.y), std::abs(params.position.z)});
   Lanes::Light& out = block.lights[j];
-  const int lanes = block.count;
-  const Vec3d position(light.position);
-  const Vec3d& color = plan.color;
-  const bool directional = light.is_directional(), spot = light.is_spot();
-  const double cone_width = std::max(light.spot_cos_inner - light.spot_cos_outer, 1e-3);
-  LaneArray<kLanes> n_dot_h, n_dot_l;
+  LaneArray<kLanes> n_dot_h, n_dot_l, power;
   Vec3Lanes<kLanes> intensity;
-  for (int i = 0; i < lanes; ++i) {
-    double lx = plan.to_light.x, ly = plan.to_light.y, lz = plan.to_light.z;
-    double ir = color.r, ig = color.g, ib = color.b;
-    bool on_point = false;
-    if (!directional) {
-      const double ox = position.x - block.point.x.v[i], oy = position.y - block.point.y.v[i],
-                   oz = position.z - block.point.z.v[i];
-      const double distance = std::sqrt(ox * ox + oy * oy + oz * oz);
-      on_point = !(distance > 0.0);
-      lx = ox / distance, ly = oy / distance, lz = oz / distance;
-      const double attenuation =
-          light.attenuation.x + light.attenuation.y * distance + light.attenuation.z * distance * distance;
-      ir /= attenuation, ig /= attenuation, ib /= attenuation;
-      if (spot) {
-        const double along = light.spot_direction.x * -lx + light.spot_direction.y * -ly + light.spot_direction.z * -lz;
-        const double cone = std::clamp((along - light.spot_cos_outer) / cone_width, 0.0, 1.0);
-        ir *= cone * cone, ig *= cone * cone, ib *= cone * cone;
-      }
-    }
-    out.on_point[std::size_t(i)] = on_point;
-    out.to_light.x.v[i] = lx, out.to_light.y.v[i] = ly, out.to_light.z.v[i] = lz;
-    intensity.x.v[i] = ir, intensity.y.v[i] = ig, intensity.z.v[i] = ib;
-    const double nx = block.normal.x.v[i], ny = block.normal.y.v[i], nz = block.normal.z.v[i];
-    const double hx = lx + -block.direction.x.v[i], hy = ly + -block.direction.y.v[i], hz = lz + -block.direction.z.v[i];
-    const double half_length = std::sqrt(hx * hx + hy * hy + hz * hz);
-    n_dot_l.v[i] = std::max(nx * lx + ny * ly + nz * lz, 0.0);
-    n_dot_h.v[i] = half_length > 0.0 ? std::max((nx * hx + ny * hy + nz * hz) / half_length, 0.0) : 0.0;
-    out.geometric_cosine.v[i] = block.geometric_normal.x.v[i] * lx + block.geometric_normal.y.v[i] * ly +
-                                block.geometric_normal.z.v[i] * lz;
-  }
-  // The shadow ray: offset_ray_origin along to_light, shadow_ray_tfar from the float32 origin.
-  const double light_extent = std::max({std::abs(position.x), std::abs(position.y), std::abs(position.z)});
-  for (int i = 0; i < lanes; ++i) {
-    set_origin(block, i, out.geometric_cosine.v[i], out.shadow_origin);
-    if (directional) {
-      out.shadow_distance.v[i] = double(kInfinity);
-      continue;
-    }
-    const double ox = position.x - double(out.shadow_origin.x[i]), oy = position.y - double(out.shadow_origin.y[i]),
-                 oz = position.z - double(out.shadow_origin.z[i]);
-    const double distance = std::sqrt(ox * ox + oy * oy + oz * oz);
-    out.shadow_distance.v[i] = context_.ray_offset.mode == RayOffset::Mode::fixed
-                                   ? distance - context_.ray_offset.epsilon
-                                   : ray_offset_detail::robust_shadow_tfar(distance, light_extent);
-  }
-  LaneArray<kLanes> power;
-  for (int i = 0; i < lanes; ++i)
-    power.v[i] = block.highlight[std::size_t(i)] ? std::pow(n_dot_h.v[i], block.shininess.v[i]) : 0.0;
-  for (int i = 0; i < lanes; ++i) {
-    const bool highlight = block.highlight[std::size_t(i)];
-    // specular * pow, or Vec3d(0.0) when the highlight is skipped.
-    const double hr = highlight ? block.specular.x.v[i] * power.v[i] : 0.0;
-    const double hg = highlight ? block.specular.y.v[i] * power.v[i] : 0.0;
-    const double hb = highlight ? block.specular.z.v[i] * power.v[i] : 0.0;
-    out.term.x.v[i] = intensity.x.v[i] * (block.ambient.x.v[i] + block.diffuse.x.v[i] * n_dot_l.v[i] + hr);
-    out.term.y.v[i] = intensity.y.v[i] * (block.ambient.y.v[i] + block.diffuse.y.v[i] * n_dot_l.v[i] + hg);
-    out.term.z.v[i] = intensity.z.v[i] * (block.ambient.z.v[i] + block.diffuse.z.v[i] * n_dot_l.v[i] + hb);
-  }
+  compute_light_lanes(params, OriginPolicy{context_.ray_offset.mode == RayOffset::Mode::fixed, context_.ray_offset.epsilon},
+                      block, out, intensity, n_dot_l, n_dot_h);
+  // pow stays libm's scalar call, lane by lane.
+  for (int i = 0; i < block.count; ++i)
+    power.v[i] = block.highlight[std::size_t(i)] != 0 ? std::pow(n_dot_h.v[i], block.shininess.v[i]) : 0.0;
+  for (int i = block.count; i % 4 != 0; ++i) power.v[i] = 0.0;
+  compute_term_lanes(block, intensity, n_dot_l, power, out);
 }
 
 namespace {
@@ -316,7 +434,7 @@ std::int32_t BatchShader::shade_lane(const Lanes& lanes, int i, int depth, const
       continue;
     }
     const Lanes::Light& light = lanes.lights[j];
-    if (light.on_point[std::size_t(i)]) {
+    if (light.on_point[std::size_t(i)] != 0) {
       skip(SkipRule::light_on_surface);
       continue;
     }

@@ -48,13 +48,13 @@ class BatchShader {
     LaneArray<kLanes> error_bound;  // SurfacePoint::error_bound
     Vec3Lanes<kLanes> ambient, diffuse, specular;  // the material's colours at each lane
     LaneArray<kLanes> shininess;
-    std::array<bool, kLanes> highlight{};  // PlainMaterial::highlight
+    alignas(32) std::array<std::int64_t, kLanes> highlight{};  // PlainMaterial::highlight: all ones or 0
     Vec3Lanes<kLanes> reflected;       // the mirror direction (reflect_direction), unit
     Vec3fLanes<kLanes> reflection_origin;  // offset_ray_origin along it
     struct Light {  // one light's unshadowed term, direction and shadow ray at each lane
       Vec3Lanes<kLanes> term, to_light;
       LaneArray<kLanes> geometric_cosine;    // geometric normal . to_light (the convex rule)
-      std::array<bool, kLanes> on_point{};  // the light is exactly at the point: no direction
+      alignas(32) std::array<std::int64_t, kLanes> on_point{};  // nonzero: the light is at the point (no direction)
       Vec3fLanes<kLanes> shadow_origin;      // offset_ray_origin along to_light
       LaneArray<kLanes> shadow_distance;     // shadow_ray_tfar (or +inf), before rounding to float32
     };
@@ -121,8 +121,6 @@ class BatchShader {
   void compute_lanes(Lanes& lanes, const std::array<Ray, kLanes>& rays, const std::array<Hit, kLanes>& hits) const;
   void compute_surfaces(Lanes& lanes, const std::array<Ray, kLanes>& rays, const std::array<Hit, kLanes>& hits) const;
   void compute_light(Lanes& lanes, std::size_t light) const;
-  // offset_ray_origin for lane i along a direction whose dot product with the geometric normal is `cosine`.
-  void set_origin(const Lanes& lanes, int i, double cosine, Vec3fLanes<kLanes>& origin) const;
   // The light terms of lane i at `depth` through `sink` (lit / query, as shade_surface's Shadows),
   // then its reflection ray, if any, appended to `next` (parent `parent`); returns its index or -1.
   template <class Sink>
