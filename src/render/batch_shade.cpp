@@ -142,8 +142,6 @@ struct Xyz {
   lm::store(to.z.v + g, z);
 }
 
-[[gnu::always_inline]] inline void load_mask(M4& out, const std::int64_t* p) { std::memcpy(&out, p, sizeof out); }
-
 // offset_ray_origin for lanes g..g+3 along directions whose dot product with the geometric normal
 // is `cosine`: off the surface along the normal, to the side the ray goes.
 [[gnu::always_inline]] inline void set_origins(const Lanes& block, int g, const D4& cosine, const OriginPolicy& policy,
@@ -217,7 +215,7 @@ void compute_surface_lanes(const Gathered& in, const OriginPolicy& policy, Lanes
     // A two-sided surface seen from behind: dot(geometric normal, to_eye) < 0, to_eye = -direction.
     const D4 facing = gx * -ux + gy * -uy + gz * -uz;
     M4 flip;
-    load_mask(flip, in.flip + g);
+    lm::load(flip, in.flip + g);
     const D4 sign = lm::select(flip & (facing < zero), lm::broadcast(-1.0), one);  // -x is x * -1 exactly
     const D4 sx = sign * (nx * n_scale), sy = sign * (ny * n_scale), sz = sign * (nz * n_scale);
     store(block.normal, g, sx, sy, sz);
@@ -258,7 +256,7 @@ void compute_light_lanes(const LightLanes& light, const OriginPolicy& policy, co
         ir *= cone * cone, ig *= cone * cone, ib *= cone * cone;
       }
     }
-    std::memcpy(out.on_point.data() + g, &on_point, sizeof on_point);
+    lm::store(out.on_point.data() + g, on_point);
     store(out.to_light, g, lx, ly, lz);
     store(intensity, g, ir, ig, ib);
     Xyz n, d, gn;
@@ -300,7 +298,7 @@ void compute_term_lanes(const Lanes& block, const Vec3Lanes<kLanes>& intensity, 
   const D4 zero{};
   for (int g = 0; g < block.count; g += 4) {
     M4 highlight;
-    load_mask(highlight, block.highlight.data() + g);
+    lm::load(highlight, block.highlight.data() + g);
     D4 ndl, pw;
     lm::load(ndl, n_dot_l.v + g);
     lm::load(pw, power.v + g);

@@ -1,42 +1,84 @@
 #pragma once
 // Four double lanes with the scalar operations' exact results, for the batch shader
 // (batch_shade.cpp): +, -, *, / and sqrt are correctly rounded in SIMD as in scalar code, and the
-// helpers below reproduce std::max, std::abs, std::clamp, ?: and the float32 round trips of
-// ray_offset_detail bit for bit, without branches. GCC/Clang vector extensions: two SSE2 registers
-// in the portable build, one AVX register in an RT_NATIVE build of an AVX machine. The code using
-// them has a single build (no target_clones): a helper taking a 32-byte vector by value between an
-// AVX2 clone and a baseline helper changes the ABI, which Clang rejects; within one build the
-// helpers are always inlined, so GCC's -Wpsabi note about that ABI is moot (off for the file).
+// helpers below reproduce unary minus, std::max, std::abs, std::clamp, ?: and the float32 round
+// trips of ray_offset_detail bit for bit, without branches. SSE2 intrinsics, two registers per
+// value: SSE2 is every x86-64's baseline, so there is one build and no dispatch. (GCC's generic
+// 32-byte vectors lower their comparisons to scalar code without AVX, and AVX clones would pass
+// 32-byte vectors between differently built functions, which Clang rejects.)
 
 #include <cstdint>
 #include <cstring>
 
-namespace rt::lane_math {
+#include <emmintrin.h>
 
-using D4 = double __attribute__((vector_size(32)));
-using M4 = std::int64_t __attribute__((vector_size(32)));  // a D4 comparison: all ones or zero per lane
-using F4 = float __attribute__((vector_size(16)));
-using I4 = std::int32_t __attribute__((vector_size(16)));  // an F4 comparison, or float32 bits
+namespace rt::lane_math {
 
 #define RT_LANE_INLINE [[gnu::always_inline]] inline
 
-RT_LANE_INLINE void load(D4& out, const double* p) { std::memcpy(&out, p, sizeof out); }
-RT_LANE_INLINE void store(double* p, const D4& v) { std::memcpy(p, &v, sizeof v); }
-RT_LANE_INLINE void load(F4& out, const float* p) { std::memcpy(&out, p, sizeof out); }
-RT_LANE_INLINE void store(float* p, const F4& v) { std::memcpy(p, &v, sizeof v); }
+struct D4 {
+  __m128d lo, hi;  // lanes 0-1 and 2-3; D4{} is all zeros
+};
+struct M4 {  // a comparison's result: all ones or all zeros per 64-bit lane
+  __m128d lo, hi;
+};
+using F4 = __m128;  // four float32 lanes
+
+RT_LANE_INLINE D4 broadcast(double x) { return {_mm_set1_pd(x), _mm_set1_pd(x)}; }
+
+RT_LANE_INLINE void load(D4& out, const double* p) {
+  out.lo = _mm_loadu_pd(p);
+  out.hi = _mm_loadu_pd(p + 2);
+}
+RT_LANE_INLINE void store(double* p, const D4& v) {
+  _mm_storeu_pd(p, v.lo);
+  _mm_storeu_pd(p + 2, v.hi);
+}
+RT_LANE_INLINE void load(M4& out, const std::int64_t* p) { std::memcpy(&out, p, sizeof out); }
+RT_LANE_INLINE void store(std::int64_t* p, const M4& m) { std::memcpy(p, &m, sizeof m); }
+RT_LANE_INLINE void load(F4& out, const float* p) { out = _mm_loadu_ps(p); }
+RT_LANE_INLINE void store(float* p, const F4& v) { _mm_storeu_ps(p, v); }
+
+#define RT_LANE_BINARY(op, intrinsic)                                                   \
+  RT_LANE_INLINE D4 operator op(const D4& a, const D4& b) {                             \
+    return {intrinsic(a.lo, b.lo), intrinsic(a.hi, b.hi)};                              \
+  }                                                                                     \
+  RT_LANE_INLINE D4& operator op##=(D4 & a, const D4 & b) { return a = a op b; }
+RT_LANE_BINARY(+, _mm_add_pd)
+RT_LANE_BINARY(-, _mm_sub_pd)
+RT_LANE_BINARY(*, _mm_mul_pd)
+RT_LANE_BINARY(/, _mm_div_pd)
+#undef RT_LANE_BINARY
+
+// -x flips the sign bit, as scalar negation does.
+RT_LANE_INLINE D4 operator-(const D4& a) {
+  const __m128d sign = _mm_set1_pd(-0.0);
+  return {_mm_xor_pd(a.lo, sign), _mm_xor_pd(a.hi, sign)};
+}
+
+#define RT_LANE_COMPARE(op, intrinsic)                                 \
+  RT_LANE_INLINE M4 operator op(const D4& a, const D4& b) {            \
+    return {intrinsic(a.lo, b.lo), intrinsic(a.hi, b.hi)};             \
+  }
+RT_LANE_COMPARE(<, _mm_cmplt_pd)  // ordered: false where either is NaN, as in scalar code
+RT_LANE_COMPARE(>, _mm_cmpgt_pd)
+RT_LANE_COMPARE(>=, _mm_cmpge_pd)
+#undef RT_LANE_COMPARE
+
+RT_LANE_INLINE M4 operator&(const M4& a, const M4& b) { return {_mm_and_pd(a.lo, b.lo), _mm_and_pd(a.hi, b.hi)}; }
+RT_LANE_INLINE M4 operator|(const M4& a, const M4& b) { return {_mm_or_pd(a.lo, b.lo), _mm_or_pd(a.hi, b.hi)}; }
+RT_LANE_INLINE M4 operator~(const M4& a) {
+  const __m128d ones = _mm_castsi128_pd(_mm_set1_epi32(-1));
+  return {_mm_xor_pd(a.lo, ones), _mm_xor_pd(a.hi, ones)};
+}
 
 // m ? a : b per lane.
 RT_LANE_INLINE D4 select(const M4& m, const D4& a, const D4& b) {
-  M4 ai, bi;
-  std::memcpy(&ai, &a, sizeof ai);
-  std::memcpy(&bi, &b, sizeof bi);
-  const M4 r = (m & ai) | (~m & bi);
-  D4 out;
-  std::memcpy(&out, &r, sizeof out);
-  return out;
+  return {_mm_or_pd(_mm_and_pd(m.lo, a.lo), _mm_andnot_pd(m.lo, b.lo)),
+          _mm_or_pd(_mm_and_pd(m.hi, a.hi), _mm_andnot_pd(m.hi, b.hi))};
 }
 
-// std::max(a, b) = (a < b) ? b : a, NaN operands included.
+// std::max(a, b) = (a < b) ? b : a, NaN operands included (maxpd differs there).
 RT_LANE_INLINE D4 max(const D4& a, const D4& b) { return select(a < b, b, a); }
 
 // std::clamp(v, lo, hi) = v < lo ? lo : hi < v ? hi : v.
@@ -44,32 +86,21 @@ RT_LANE_INLINE D4 clamp(const D4& v, const D4& lo, const D4& hi) { return select
 
 // std::abs: the sign bit cleared.
 RT_LANE_INLINE D4 abs(const D4& v) {
-  M4 bits;
-  std::memcpy(&bits, &v, sizeof bits);
-  bits &= M4{} + INT64_MAX;
-  D4 out;
-  std::memcpy(&out, &bits, sizeof out);
-  return out;
+  const __m128d sign = _mm_set1_pd(-0.0);
+  return {_mm_andnot_pd(sign, v.lo), _mm_andnot_pd(sign, v.hi)};
 }
 
-// std::sqrt per lane (correctly rounded; the file is compiled with -fno-math-errno).
-RT_LANE_INLINE D4 sqrt(const D4& v) {
-  double lanes[4];
-  std::memcpy(lanes, &v, sizeof lanes);
-  for (double& x : lanes) x = __builtin_sqrt(x);
-  D4 out;
-  std::memcpy(&out, lanes, sizeof out);
-  return out;
-}
-
-RT_LANE_INLINE D4 broadcast(double x) { return D4{} + x; }
+// std::sqrt per lane: sqrtpd is correctly rounded like sqrtsd.
+RT_LANE_INLINE D4 sqrt(const D4& v) { return {_mm_sqrt_pd(v.lo), _mm_sqrt_pd(v.hi)}; }
 
 // static_cast<float> and back to double, per lane (round to nearest, as the scalar conversions).
-RT_LANE_INLINE F4 to_float(const D4& v) { return __builtin_convertvector(v, F4); }
-RT_LANE_INLINE D4 to_double(const F4& v) { return __builtin_convertvector(v, D4); }
+RT_LANE_INLINE F4 to_float(const D4& v) { return _mm_movelh_ps(_mm_cvtpd_ps(v.lo), _mm_cvtpd_ps(v.hi)); }
+RT_LANE_INLINE D4 to_double(const F4& v) { return {_mm_cvtps_pd(v), _mm_cvtps_pd(_mm_movehl_ps(v, v))}; }
 
-// A 64-bit-lane mask narrowed to the float lanes.
-RT_LANE_INLINE I4 narrow(const M4& m) { return __builtin_convertvector(m, I4); }
+// A 64-bit-lane mask narrowed to the four float lanes (the low half of each 64-bit lane).
+RT_LANE_INLINE __m128i narrow(const M4& m) {
+  return _mm_castps_si128(_mm_shuffle_ps(_mm_castpd_ps(m.lo), _mm_castpd_ps(m.hi), _MM_SHUFFLE(2, 0, 2, 0)));
+}
 
 // ray_offset_detail::round_away per lane: p rounded to float32 and, where rounding moved it against
 // `away`, one float further along `away`. next_float's step on the bits: +1 moves a positive float
@@ -79,16 +110,13 @@ RT_LANE_INLINE F4 round_away(const D4& p, const D4& away) {
   const F4 f = to_float(p);
   const D4 back = to_double(f);
   const D4 zero{};
-  const I4 up = narrow((away > zero) & (back < p));
-  const I4 down = narrow((away < zero) & (back > p));
-  I4 bits;
-  std::memcpy(&bits, &f, sizeof bits);
-  const I4 negative = bits >> 31;  // all ones where the sign bit is set
-  const I4 step = ~(negative ^ up) | (I4{} + 1);  // -1 where negative == up, else +1
-  bits += (up | down) & step;
-  F4 out;
-  std::memcpy(&out, &bits, sizeof out);
-  return out;
+  const __m128i up = narrow((away > zero) & (back < p));
+  const __m128i down = narrow((zero > away) & (p < back));
+  const __m128i bits = _mm_castps_si128(f);
+  const __m128i negative = _mm_srai_epi32(bits, 31);  // all ones where the sign bit is set
+  // -1 where negative == up, else +1.
+  const __m128i step = _mm_or_si128(_mm_xor_si128(_mm_xor_si128(negative, up), _mm_set1_epi32(-1)), _mm_set1_epi32(1));
+  return _mm_castsi128_ps(_mm_add_epi32(bits, _mm_and_si128(_mm_or_si128(up, down), step)));
 }
 
 #undef RT_LANE_INLINE
