@@ -91,6 +91,9 @@ void BatchShader::prepare(std::span<const Ray> rays, std::span<const Hit> hits, 
   }
   work.lanes.count = count;
   compute_lanes(work.lanes, lane_rays, lane_hits);
+}
+
+void BatchShader::start_block(Workspace& work) const {
   if (work.waves.size() < 2) work.waves.resize(2);
   work.waves[1].clear();
 }

@@ -79,7 +79,7 @@ class BatchShader {
 
   // Everything one render thread reuses from block to block.
   struct Workspace {
-    std::array<std::int8_t, kLanes> lane_of{};  // per camera pixel of the block: its lane, or -1
+    std::array<std::int8_t, kLanes> lane_of{};  // per camera pixel of the prepared packet: its lane, or -1
     Lanes lanes;
     std::vector<std::vector<Secondary>> waves;  // [d]: the reflection rays of depth d (index 0 unused)
   };
@@ -89,13 +89,17 @@ class BatchShader {
   // False when no hit of the scene can be batched: every pixel takes shade_camera_hit.
   bool enabled() const { return enabled_; }
 
-  // Starts a block: computes the shading arithmetic of the batchable camera hits among `hits` (at
-  // most kLanes; the closest hits of `rays`); pixels with `unbatched[k]` set are left out.
+  // Starts a block of camera pixels: no reflection ray waits yet.
+  void start_block(Workspace& work) const;
+
+  // Computes the shading arithmetic of the batchable camera hits among `hits` (at most kLanes; the
+  // closest hits of `rays`, a packet of the block); pixels with `unbatched[k]` set are left out.
   void prepare(std::span<const Ray> rays, std::span<const Hit> hits, std::span<const bool> unbatched,
                Workspace& work) const;
 
-  // shade_camera_hit for pixel k of the block, when work.lane_of[k] >= 0: appends its pixel to
-  // `pending` and counts as shade_camera_hit does; its reflection ray waits in work.waves[1].
+  // shade_camera_hit for pixel k of the prepared packet, when work.lane_of[k] >= 0: appends its
+  // pixel to `pending` and counts as shade_camera_hit does; its reflection ray waits in
+  // work.waves[1] until trace_reflections traces the block's.
   void finish_camera_hit(Workspace& work, int k, const Ray& ray, const Hit& hit, RayCounts& counts,
                          PendingShading& pending) const;
 

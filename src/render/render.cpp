@@ -103,9 +103,14 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   result.region = region;
   result.image = Image(region.width(), region.height());
   result.tile_done.assign(std::size_t(tile_count), 0);
-  constexpr int kBlock = 4;  // camera rays are traced in blocks of kBlock x kBlock pixels (see render_block)
+  // Camera rays are traced in packets of kPacket x kPacket pixels and shaded in blocks of kBlock x
+  // kBlock (see render_block): a block's reflection rays are one wavefront, its shadow rays one batch.
+  constexpr int kPacket = 4;
+  constexpr int kPacketPixels = kPacket * kPacket;
+  constexpr int kBlock = 8;
   constexpr int kBlockPixels = kBlock * kBlock;
-  static_assert(kBlockPixels <= BatchShader::kLanes, "a block's camera hits must fit the batch shader's lanes");
+  static_assert(kPacketPixels <= BatchShader::kLanes, "a packet's camera hits must fit the batch shader's lanes");
+  static_assert(kBlock % kPacket == 0);
   struct ThreadState {
     RayCounts counts;
     // Buffers of the camera blocks, reused from block to block.
@@ -150,13 +155,21 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   const auto render_block = [&](int bx0, int by0, int bx1, int by1, ThreadState& state) {
     RayCounts& counts = state.counts;
     PendingShading& pending = state.pending;
+    // The block's pixels packet by packet (each packet's row by row); packet p is pixels
+    // [packet_start[p], packet_start[p + 1]).
     std::array<int, kBlockPixels> xs, ys;
-    int n = 0;
-    for (int y = by0; y < by1; ++y)
-      for (int x = bx0; x < bx1; ++x, ++n) {
-        xs[n] = x;
-        ys[n] = y;
+    std::array<int, kBlockPixels / kPacketPixels + 1> packet_start;
+    int n = 0, packets = 0;
+    for (int py = by0; py < by1; py += kPacket)
+      for (int px = bx0; px < bx1; px += kPacket) {
+        packet_start[std::size_t(packets++)] = n;
+        for (int y = py; y < std::min(py + kPacket, by1); ++y)
+          for (int x = px; x < std::min(px + kPacket, bx1); ++x, ++n) {
+            xs[std::size_t(n)] = x;
+            ys[std::size_t(n)] = y;
+          }
       }
+    packet_start[std::size_t(packets)] = n;
     std::array<bool, kBlockPixels> timed{};
     std::array<std::uint64_t, kBlockPixels>& ticks = state.ticks;  // per timed pixel: its loop ticks this sample
     if (options.time_queries)
@@ -174,35 +187,42 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
           centre_rays.set_ray(rays[k], xs[k], ys[k]);
         else
           rays[k] = ray_through_pixel_sample(frame, xs[k], ys[k], s, spp);
-      std::uint64_t start = options.time_queries ? __rdtsc() : 0;
-      accel.intersect_coherent(std::span(rays.data(), std::size_t(n)), std::span(hits.data(), std::size_t(n)));
-      if (options.time_queries) {
-        const std::uint64_t share = (__rdtsc() - start) / std::uint64_t(n);
-        if (counts.intersect_ticks_per_depth.empty()) counts.intersect_ticks_per_depth.resize(1, 0);
-        for (int k = 0; k < n; ++k)
-          if (timed[k]) {
-            counts.intersect_ticks_per_depth[0] += share;
-            ticks[k] = share;
-          }
-      }
-
       pending.clear();
-      if (batching)  // the timed pixels are left to shade_camera_hit, which times them
-        batch.prepare(std::span(rays.data(), std::size_t(n)), std::span(hits.data(), std::size_t(n)),
-                      std::span(timed.data(), std::size_t(n)), state.batch);
-      for (int k = 0; k < n; ++k) {
-        if (batching && state.batch.lane_of[std::size_t(k)] >= 0) {
-          batch.finish_camera_hit(state.batch, k, rays[std::size_t(k)], hits[std::size_t(k)], counts, pending);
-          continue;
+      if (batching) batch.start_block(state.batch);
+      std::uint64_t start = 0;
+      for (int p = 0; p < packets; ++p) {
+        const int first = packet_start[std::size_t(p)], count = packet_start[std::size_t(p) + 1] - first;
+        const auto packet_rays = std::span(rays).subspan(std::size_t(first), std::size_t(count));
+        const auto packet_hits = std::span(hits).subspan(std::size_t(first), std::size_t(count));
+        start = options.time_queries ? __rdtsc() : 0;
+        accel.intersect_coherent(packet_rays, packet_hits);
+        if (options.time_queries) {
+          const std::uint64_t share = (__rdtsc() - start) / std::uint64_t(count);
+          if (counts.intersect_ticks_per_depth.empty()) counts.intersect_ticks_per_depth.resize(1, 0);
+          for (int k = first; k < first + count; ++k)
+            if (timed[k]) {
+              counts.intersect_ticks_per_depth[0] += share;
+              ticks[k] = share;
+            }
         }
-        if (batching && !timed[k] && !hits[k].found()) {
-          batch.add_miss(pending);
-          continue;
+        if (batching)  // the timed pixels are left to shade_camera_hit, which times them
+          batch.prepare(packet_rays, packet_hits, std::span(timed).subspan(std::size_t(first), std::size_t(count)),
+                        state.batch);
+        for (int k = first; k < first + count; ++k) {
+          const int lane = k - first;
+          if (batching && state.batch.lane_of[std::size_t(lane)] >= 0) {
+            batch.finish_camera_hit(state.batch, lane, rays[std::size_t(k)], hits[std::size_t(k)], counts, pending);
+            continue;
+          }
+          if (batching && !timed[k] && !hits[k].found()) {
+            batch.add_miss(pending);
+            continue;
+          }
+          if (timed[k]) start = __rdtsc();
+          shade_camera_hit(timed[k] ? timed_context : context, rays[k], hits[k],
+                           sampled_lights ? pixel_path_seed(xs[k], ys[k], s) : 0, counts, pending);
+          if (timed[k]) ticks[k] += __rdtsc() - start;
         }
-        if (timed[k]) start = __rdtsc();
-        shade_camera_hit(timed[k] ? timed_context : context, rays[k], hits[k],
-                         sampled_lights ? pixel_path_seed(xs[k], ys[k], s) : 0, counts, pending);
-        if (timed[k]) ticks[k] += __rdtsc() - start;
       }
       if (batching) batch.trace_reflections(state.batch, counts, pending);
 
