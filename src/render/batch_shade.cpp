@@ -93,6 +93,14 @@ void BatchShader::prepare(std::span<const Ray> rays, std::span<const Hit> hits, 
   compute_lanes(work.lanes, lane_rays, lane_hits);
 }
 
+void BatchShader::prefetch_triangles(std::span<const Hit> hits) const {
+  for (const Hit& hit : hits)
+    if (hit.found()) {
+      __builtin_prefetch(&context_.flat.triangles[hit.primitive]);
+      __builtin_prefetch(&context_.flat.material_ids[hit.primitive]);
+    }
+}
+
 void BatchShader::start_block(Workspace& work) const {
   if (work.waves.size() < 2) work.waves.resize(2);
   work.waves[1].clear();
@@ -324,9 +332,15 @@ void BatchShader::compute_surfaces(Lanes& block, const std::array<Ray, kLanes>& 
   const FlatScene& flat = context_.flat;
   const int lanes = block.count;
   Gathered in;
-  // Indices first, then vertices: each loop's loads are independent, so their cache misses overlap.
+  // Indices first, then every vertex line requested at once, then the vertices: the cache misses
+  // of all lanes overlap.
   std::array<Vec3u, kLanes> triangles;
   for (int i = 0; i < lanes; ++i) triangles[std::size_t(i)] = flat.triangles[hits[std::size_t(i)].primitive];
+  for (int i = 0; i < lanes; ++i)
+    for (const std::uint32_t v : {triangles[std::size_t(i)].x, triangles[std::size_t(i)].y, triangles[std::size_t(i)].z}) {
+      __builtin_prefetch(&flat.positions[v]);
+      __builtin_prefetch(&flat.normals[v]);
+    }
   for (int i = 0; i < lanes; ++i) {
     const Hit& hit = hits[std::size_t(i)];
     const Vec3u tri = triangles[std::size_t(i)];
@@ -517,7 +531,10 @@ void BatchShader::shade_wave(Workspace& work, int depth, RayCounts& counts) cons
   std::vector<Secondary>& wave = work.waves[std::size_t(depth)];
   std::vector<Secondary>& next = work.waves[std::size_t(depth) + 1];
   next.clear();
-  for (Secondary& secondary : wave) secondary.hit = context_.accel.intersect(secondary.ray);
+  for (Secondary& secondary : wave) {
+    secondary.hit = context_.accel.intersect(secondary.ray);
+    prefetch_triangles(std::span(&secondary.hit, 1));  // while the next rays are traced
+  }
   std::array<Ray, kLanes> lane_rays;
   std::array<Hit, kLanes> lane_hits;
   std::array<std::int32_t, kLanes> lane_index;

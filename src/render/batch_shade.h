@@ -121,6 +121,8 @@ class BatchShader {
     Vec3d ambient{0.0}, diffuse{0.0}, specular{0.0}, reflective{0.0}, emission{0.0};
   };
   bool batchable(const Hit& hit) const;
+  // A cache hint for the triangle indices and materials that compute_surfaces gathers for `hits`.
+  void prefetch_triangles(std::span<const Hit> hits) const;
   // The arithmetic of lanes.count hits (rays[i], hits[i] batchable).
   void compute_lanes(Lanes& lanes, const std::array<Ray, kLanes>& rays, const std::array<Hit, kLanes>& hits) const;
   void compute_surfaces(Lanes& lanes, const std::array<Ray, kLanes>& rays, const std::array<Hit, kLanes>& hits) const;
