@@ -5,7 +5,7 @@
 #include <cstring>
 
 #include "rt/render/dielectric.h"
-#include "lane_math.h"
+#include "batch_lanes.h"
 #include "shading_margins.h"
 #include "shadow_records.h"
 
@@ -108,222 +108,9 @@ void BatchShader::start_block(Workspace& work) const {
 
 namespace {
 
-namespace lm = lane_math;
-using lm::D4;
-using lm::F4;
-using lm::M4;
-constexpr int kLanes = BatchShader::kLanes;
-using Lanes = BatchShader::Lanes;
-
-// A triangle hit's inputs, gathered lane by lane: vertices and vertex normals (float32 widened to
-// double, world space), the unit-less ray direction, the barycentrics and the back-face flip.
-struct Gathered {
-  Gathered() {}  // not zeroed: every lane in use is written
-  Vec3Lanes<kLanes> p0, p1, p2, n0, n1, n2, d;
-  LaneArray<kLanes> b1, b2;
-  alignas(32) std::int64_t flip[kLanes];  // all ones: BackFace::flipped
-};
-
-struct OriginPolicy {
-  bool fixed = false;     // RayOffset::Mode::fixed
-  double epsilon = 0.0;  // its distance
-};
-
-// What compute_light_lanes reads of one light (world space, double).
-struct LightLanes {
-  bool directional = false, spot = false;
-  Vec3d position{0.0}, to_light{0.0}, color{0.0}, attenuation{0.0}, spot_direction{0.0};
-  double spot_cos_outer = 0.0, cone_width = 0.0;
-  double extent = 0.0;  // the largest coordinate magnitude of the position (robust_shadow_tfar)
-};
-
-struct Xyz {
-  D4 x, y, z;
-};
-
-[[gnu::always_inline]] inline void load(Xyz& out, const Vec3Lanes<kLanes>& v, int g) {
-  lm::load(out.x, v.x.v + g);
-  lm::load(out.y, v.y.v + g);
-  lm::load(out.z, v.z.v + g);
-}
-
-[[gnu::always_inline]] inline void store(Vec3Lanes<kLanes>& to, int g, const D4& x, const D4& y, const D4& z) {
-  lm::store(to.x.v + g, x);
-  lm::store(to.y.v + g, y);
-  lm::store(to.z.v + g, z);
-}
-
-// offset_ray_origin for lanes g..g+3 along directions whose dot product with the geometric normal
-// is `cosine`: off the surface along the normal, to the side the ray goes.
-[[gnu::always_inline]] inline void set_origins(const Lanes& block, int g, const D4& cosine, const OriginPolicy& policy,
-                                               Vec3fLanes<kLanes>& origin) {
-  const D4 sign = lm::select(cosine >= D4{}, lm::broadcast(1.0), lm::broadcast(-1.0));  // n or -n, exactly
-  Xyz n, p;
-  load(n, block.geometric_normal, g);
-  load(p, block.point, g);
-  const D4 sx = sign * n.x, sy = sign * n.y, sz = sign * n.z;
-  if (policy.fixed) {
-    const D4 epsilon = lm::broadcast(policy.epsilon);
-    lm::store(origin.x + g, lm::to_float(p.x + epsilon * sx));
-    lm::store(origin.y + g, lm::to_float(p.y + epsilon * sy));
-    lm::store(origin.z + g, lm::to_float(p.z + epsilon * sz));
-    return;
-  }
-  D4 bound;
-  lm::load(bound, block.error_bound.v + g);
-  lm::store(origin.x + g, lm::round_away(p.x + bound * sx, sx));
-  lm::store(origin.y + g, lm::round_away(p.y + bound * sy, sy));
-  lm::store(origin.z + g, lm::round_away(p.z + bound * sz, sz));
-}
-
-// make_surface_point, the shading normal (interpolated, unit, flipped towards the viewer on a
-// two-sided back face), the unit direction and the reflection ray, for block.count lanes.
-void compute_surface_lanes(const Gathered& in, const OriginPolicy& policy, Lanes& block) {
-  const D4 zero{}, one = lm::broadcast(1.0);
-  for (int g = 0; g < block.count; g += 4) {
-    D4 b1, b2;
-    lm::load(b1, in.b1.v + g);
-    lm::load(b2, in.b2.v + g);
-    const D4 w0 = one - b1 - b2;
-    Xyz p0, p1, p2;
-    load(p0, in.p0, g);
-    load(p1, in.p1, g);
-    load(p2, in.p2, g);
-    const D4 px = w0 * p0.x + b1 * p1.x + b2 * p2.x;
-    const D4 py = w0 * p0.y + b1 * p1.y + b2 * p2.y;
-    const D4 pz = w0 * p0.z + b1 * p1.z + b2 * p2.z;
-    store(block.point, g, px, py, pz);
-    const D4 e1x = p1.x - p0.x, e1y = p1.y - p0.y, e1z = p1.z - p0.z;
-    const D4 e2x = p2.x - p0.x, e2y = p2.y - p0.y, e2z = p2.z - p0.z;
-    const D4 e3x = p2.x - p1.x, e3y = p2.y - p1.y, e3z = p2.z - p1.z;
-    const D4 cx = e1y * e2z - e2y * e1z, cy = e1z * e2x - e2z * e1x, cz = e1x * e2y - e2x * e1y;
-    const D4 area2 = lm::sqrt(cx * cx + cy * cy + cz * cz);
-    const M4 has_area = area2 > zero;
-    const D4 gx = lm::select(has_area, cx / area2, zero), gy = lm::select(has_area, cy / area2, zero),
-             gz = lm::select(has_area, cz / area2, zero);
-    store(block.geometric_normal, g, gx, gy, gz);
-    const D4 l1 = lm::sqrt(e1x * e1x + e1y * e1y + e1z * e1z);
-    const D4 l2 = lm::sqrt(e2x * e2x + e2y * e2y + e2z * e2z);
-    const D4 l3 = lm::sqrt(e3x * e3x + e3y * e3y + e3z * e3z);
-    const D4 kappa = lm::select(has_area, l1 * l2 / area2, one);
-    const D4 longest = lm::max(lm::max(l1, l2), l3);
-    const D4 largest = lm::max(lm::max(lm::abs(px), lm::abs(py)), lm::abs(pz));
-    lm::store(block.error_bound.v + g, lm::broadcast(kScaledRoundoff) * (lm::broadcast(std::sqrt(3.0)) * largest +
-                                                                         (lm::broadcast(4.0) + lm::broadcast(2.0) * kappa) * longest));
-
-    Xyz n0, n1, n2, d;
-    load(n0, in.n0, g);
-    load(n1, in.n1, g);
-    load(n2, in.n2, g);
-    load(d, in.d, g);
-    const D4 nx = w0 * n0.x + b1 * n1.x + b2 * n2.x;
-    const D4 ny = w0 * n0.y + b1 * n1.y + b2 * n2.y;
-    const D4 nz = w0 * n0.z + b1 * n1.z + b2 * n2.z;
-    const D4 n_scale = one / lm::sqrt(nx * nx + ny * ny + nz * nz);
-    const D4 d_scale = one / lm::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
-    const D4 ux = d.x * d_scale, uy = d.y * d_scale, uz = d.z * d_scale;
-    store(block.direction, g, ux, uy, uz);
-    // A two-sided surface seen from behind: dot(geometric normal, to_eye) < 0, to_eye = -direction.
-    const D4 facing = gx * -ux + gy * -uy + gz * -uz;
-    M4 flip;
-    lm::load(flip, in.flip + g);
-    const D4 sign = lm::select(flip & (facing < zero), lm::broadcast(-1.0), one);  // -x is x * -1 exactly
-    const D4 sx = sign * (nx * n_scale), sy = sign * (ny * n_scale), sz = sign * (nz * n_scale);
-    store(block.normal, g, sx, sy, sz);
-
-    // The reflection ray: reflect_direction and offset_ray_origin.
-    const D4 twice = lm::broadcast(2.0) * (ux * sx + uy * sy + uz * sz);
-    const D4 rx = ux - twice * sx, ry = uy - twice * sy, rz = uz - twice * sz;
-    store(block.reflected, g, rx, ry, rz);
-    set_origins(block, g, gx * rx + gy * ry + gz * rz, policy, block.reflection_origin);
-  }
-}
-
-// One light's direction, unshadowed intensity, n.l, n.h, geometric cosine and shadow ray at
-// block.count lanes (shade_surface's, before the pow of the highlight).
-void compute_light_lanes(const LightLanes& light, const OriginPolicy& policy, const Lanes& block, Lanes::Light& out,
-                         Vec3Lanes<kLanes>& intensity, LaneArray<kLanes>& n_dot_l, LaneArray<kLanes>& n_dot_h) {
-  const D4 zero{};
-  for (int g = 0; g < block.count; g += 4) {
-    D4 lx = lm::broadcast(light.to_light.x), ly = lm::broadcast(light.to_light.y), lz = lm::broadcast(light.to_light.z);
-    D4 ir = lm::broadcast(light.color.r), ig = lm::broadcast(light.color.g), ib = lm::broadcast(light.color.b);
-    M4 on_point{};
-    if (!light.directional) {
-      Xyz p;
-      load(p, block.point, g);
-      const D4 ox = lm::broadcast(light.position.x) - p.x, oy = lm::broadcast(light.position.y) - p.y,
-               oz = lm::broadcast(light.position.z) - p.z;
-      const D4 distance = lm::sqrt(ox * ox + oy * oy + oz * oz);
-      on_point = ~(distance > zero);
-      lx = ox / distance, ly = oy / distance, lz = oz / distance;
-      const D4 attenuation = lm::broadcast(light.attenuation.x) + lm::broadcast(light.attenuation.y) * distance +
-                             lm::broadcast(light.attenuation.z) * distance * distance;
-      ir /= attenuation, ig /= attenuation, ib /= attenuation;
-      if (light.spot) {
-        const D4 along = lm::broadcast(light.spot_direction.x) * -lx + lm::broadcast(light.spot_direction.y) * -ly +
-                         lm::broadcast(light.spot_direction.z) * -lz;
-        const D4 cone = lm::clamp((along - lm::broadcast(light.spot_cos_outer)) / lm::broadcast(light.cone_width), zero,
-                                  lm::broadcast(1.0));
-        ir *= cone * cone, ig *= cone * cone, ib *= cone * cone;
-      }
-    }
-    lm::store(out.on_point.data() + g, on_point);
-    store(out.to_light, g, lx, ly, lz);
-    store(intensity, g, ir, ig, ib);
-    Xyz n, d, gn;
-    load(n, block.normal, g);
-    load(d, block.direction, g);
-    load(gn, block.geometric_normal, g);
-    const D4 hx = lx + -d.x, hy = ly + -d.y, hz = lz + -d.z;
-    const D4 half_length = lm::sqrt(hx * hx + hy * hy + hz * hz);
-    lm::store(n_dot_l.v + g, lm::max(n.x * lx + n.y * ly + n.z * lz, zero));
-    lm::store(n_dot_h.v + g, lm::select(half_length > zero, lm::max((n.x * hx + n.y * hy + n.z * hz) / half_length, zero),
-                                        zero));
-    const D4 cosine = gn.x * lx + gn.y * ly + gn.z * lz;
-    lm::store(out.geometric_cosine.v + g, cosine);
-
-    // The shadow ray: offset_ray_origin along to_light, shadow_ray_tfar from the float32 origin.
-    set_origins(block, g, cosine, policy, out.shadow_origin);
-    if (light.directional) {
-      lm::store(out.shadow_distance.v + g, lm::broadcast(double(kInfinity)));
-      continue;
-    }
-    F4 fx, fy, fz;
-    lm::load(fx, out.shadow_origin.x + g);
-    lm::load(fy, out.shadow_origin.y + g);
-    lm::load(fz, out.shadow_origin.z + g);
-    const D4 ox = lm::broadcast(light.position.x) - lm::to_double(fx), oy = lm::broadcast(light.position.y) - lm::to_double(fy),
-             oz = lm::broadcast(light.position.z) - lm::to_double(fz);
-    const D4 distance = lm::sqrt(ox * ox + oy * oy + oz * oz);
-    lm::store(out.shadow_distance.v + g,
-              policy.fixed ? distance - lm::broadcast(policy.epsilon)
-                           : distance - lm::broadcast(kScaledRoundoff) * (lm::broadcast(std::sqrt(3.0)) * lm::broadcast(light.extent) +
-                                                                          lm::broadcast(4.0) * distance));
-  }
-}
-
-// The light term at block.count lanes: intensity (ambient + diffuse n.l + specular pow(n.h, s)),
-// the highlight Vec3d(0.0) where it is skipped.
-void compute_term_lanes(const Lanes& block, const Vec3Lanes<kLanes>& intensity, const LaneArray<kLanes>& n_dot_l,
-                        const LaneArray<kLanes>& power, Lanes::Light& out) {
-  const D4 zero{};
-  for (int g = 0; g < block.count; g += 4) {
-    M4 highlight;
-    lm::load(highlight, block.highlight.data() + g);
-    D4 ndl, pw;
-    lm::load(ndl, n_dot_l.v + g);
-    lm::load(pw, power.v + g);
-    Xyz in, ambient, diffuse, specular;
-    load(in, intensity, g);
-    load(ambient, block.ambient, g);
-    load(diffuse, block.diffuse, g);
-    load(specular, block.specular, g);
-    const D4 hr = lm::select(highlight, specular.x * pw, zero), hg = lm::select(highlight, specular.y * pw, zero),
-             hb = lm::select(highlight, specular.z * pw, zero);
-    store(out.term, g, in.x * (ambient.x + diffuse.x * ndl + hr), in.y * (ambient.y + diffuse.y * ndl + hg),
-          in.z * (ambient.z + diffuse.z * ndl + hb));
-  }
-}
+using batch_lanes::Gathered;
+using batch_lanes::LightLanes;
+using batch_lanes::OriginPolicy;
 
 }  // namespace
 
@@ -367,7 +154,7 @@ void BatchShader::compute_surfaces(Lanes& block, const std::array<Ray, kLanes>& 
     block.specular.x.v[i] = plain.specular.x, block.specular.y.v[i] = plain.specular.y,
     block.specular.z.v[i] = plain.specular.z;
     block.shininess.v[i] = plain.shininess;
-    block.highlight[std::size_t(i)] = plain.highlight ? -1 : 0;
+    block.highlight[i] = plain.highlight ? -1 : 0;
   }
   // Lanes past the count (up to the next multiple of 4) are computed and never read: give them a
   // copy of lane 0, so that no uninitialised value enters the arithmetic.
@@ -382,9 +169,9 @@ void BatchShader::compute_surfaces(Lanes& block, const std::array<Ray, kLanes>& 
       copy(*v);
     in.b1.v[i] = in.b1.v[0], in.b2.v[i] = in.b2.v[0], in.flip[i] = in.flip[0];
     block.shininess.v[i] = block.shininess.v[0];
-    block.highlight[std::size_t(i)] = block.highlight[0];
+    block.highlight[i] = block.highlight[0];
   }
-  compute_surface_lanes(in, OriginPolicy{context_.ray_offset.mode == RayOffset::Mode::fixed, context_.ray_offset.epsilon},
+  batch_lanes::best_kernels().surfaces(in, OriginPolicy{context_.ray_offset.mode == RayOffset::Mode::fixed, context_.ray_offset.epsilon},
                         block);
 }
 
@@ -394,24 +181,26 @@ void BatchShader::compute_light(Lanes& block, std::size_t j) const {
   LightLanes params;
   params.directional = light.is_directional();
   params.spot = light.is_spot();
-  params.position = Vec3d(light.position);
-  params.to_light = plan.to_light;
-  params.color = plan.color;
-  params.attenuation = light.attenuation;
-  params.spot_direction = light.spot_direction;
+  const Vec3d position(light.position);
+  const auto put = [](double (&to)[3], const Vec3d& from) { to[0] = from.x, to[1] = from.y, to[2] = from.z; };
+  put(params.position, position);
+  put(params.to_light, plan.to_light);
+  put(params.color, plan.color);
+  put(params.attenuation, light.attenuation);
+  put(params.spot_direction, light.spot_direction);
   params.spot_cos_outer = light.spot_cos_outer;
   params.cone_width = std::max(light.spot_cos_inner - light.spot_cos_outer, 1e-3);
-  params.extent = std::max({std::abs(params.position.x), std::abs(params.position.y), std::abs(params.position.z)});
+  params.extent = std::max({std::abs(position.x), std::abs(position.y), std::abs(position.z)});
   Lanes::Light& out = block.lights[j];
   LaneArray<kLanes> n_dot_h, n_dot_l, power;
   Vec3Lanes<kLanes> intensity;
-  compute_light_lanes(params, OriginPolicy{context_.ray_offset.mode == RayOffset::Mode::fixed, context_.ray_offset.epsilon},
+  batch_lanes::best_kernels().light(params, OriginPolicy{context_.ray_offset.mode == RayOffset::Mode::fixed, context_.ray_offset.epsilon},
                       block, out, intensity, n_dot_l, n_dot_h);
   // pow stays libm's scalar call, lane by lane.
   for (int i = 0; i < block.count; ++i)
-    power.v[i] = block.highlight[std::size_t(i)] != 0 ? std::pow(n_dot_h.v[i], block.shininess.v[i]) : 0.0;
+    power.v[i] = block.highlight[i] != 0 ? std::pow(n_dot_h.v[i], block.shininess.v[i]) : 0.0;
   for (int i = block.count; i % 4 != 0; ++i) power.v[i] = 0.0;
-  compute_term_lanes(block, intensity, n_dot_l, power, out);
+  batch_lanes::best_kernels().terms(block, intensity, n_dot_l, power, out);
 }
 
 namespace {
@@ -449,7 +238,7 @@ std::int32_t BatchShader::shade_lane(const Lanes& lanes, int i, int depth, const
       continue;
     }
     const Lanes::Light& light = lanes.lights[j];
-    if (light.on_point[std::size_t(i)] != 0) {
+    if (light.on_point[i] != 0) {
       skip(SkipRule::light_on_surface);
       continue;
     }

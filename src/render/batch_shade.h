@@ -48,13 +48,13 @@ class BatchShader {
     LaneArray<kLanes> error_bound;  // SurfacePoint::error_bound
     Vec3Lanes<kLanes> ambient, diffuse, specular;  // the material's colours at each lane
     LaneArray<kLanes> shininess;
-    alignas(32) std::array<std::int64_t, kLanes> highlight{};  // PlainMaterial::highlight: all ones or 0
+    alignas(32) std::int64_t highlight[kLanes];  // PlainMaterial::highlight: all ones or 0
     Vec3Lanes<kLanes> reflected;       // the mirror direction (reflect_direction), unit
     Vec3fLanes<kLanes> reflection_origin;  // offset_ray_origin along it
     struct Light {  // one light's unshadowed term, direction and shadow ray at each lane
       Vec3Lanes<kLanes> term, to_light;
       LaneArray<kLanes> geometric_cosine;    // geometric normal . to_light (the convex rule)
-      alignas(32) std::array<std::int64_t, kLanes> on_point{};  // nonzero: the light is at the point (no direction)
+      alignas(32) std::int64_t on_point[kLanes];  // nonzero: the light is at the point (no direction)
       Vec3fLanes<kLanes> shadow_origin;      // offset_ray_origin along to_light
       LaneArray<kLanes> shadow_distance;     // shadow_ray_tfar (or +inf), before rounding to float32
     };

@@ -1,20 +1,76 @@
 #pragma once
 // Four double lanes with the scalar operations' exact results, for the batch shader
-// (batch_shade.cpp): +, -, *, / and sqrt are correctly rounded in SIMD as in scalar code, and the
+// (batch_lanes.cpp): +, -, *, / and sqrt are correctly rounded in SIMD as in scalar code, and the
 // helpers below reproduce unary minus, std::max, std::abs, std::clamp, ?: and the float32 round
-// trips of ray_offset_detail bit for bit, without branches. SSE2 intrinsics, two registers per
-// value: SSE2 is every x86-64's baseline, so there is one build and no dispatch. (GCC's generic
-// 32-byte vectors lower their comparisons to scalar code without AVX, and AVX clones would pass
-// 32-byte vectors between differently built functions, which Clang rejects.)
+// trips of ray_offset_detail bit for bit, without branches. Two implementations with one
+// interface: SSE2 intrinsics (two registers per value; every x86-64 has them) and, in a file built
+// with -mavx2, AVX ones (one register). Each lives in its own inline namespace, so the two builds'
+// types and helpers never share a name. (GCC's generic 32-byte vectors lower their comparisons to
+// scalar code without AVX, hence the intrinsics.)
 
 #include <cstdint>
 #include <cstring>
 
-#include <emmintrin.h>
+#include <immintrin.h>
 
 namespace rt::lane_math {
 
 #define RT_LANE_INLINE [[gnu::always_inline]] inline
+
+#ifdef __AVX2__
+inline namespace avx2 {
+
+struct D4 {
+  __m256d v;  // D4{} is all zeros
+};
+struct M4 {  // a comparison's result: all ones or all zeros per 64-bit lane
+  __m256d v;
+};
+using F4 = __m128;  // four float32 lanes
+
+RT_LANE_INLINE D4 broadcast(double x) { return {_mm256_set1_pd(x)}; }
+RT_LANE_INLINE void load(D4& out, const double* p) { out.v = _mm256_loadu_pd(p); }
+RT_LANE_INLINE void store(double* p, const D4& v) { _mm256_storeu_pd(p, v.v); }
+RT_LANE_INLINE void load(M4& out, const std::int64_t* p) { std::memcpy(&out, p, sizeof out); }
+RT_LANE_INLINE void store(std::int64_t* p, const M4& m) { std::memcpy(p, &m, sizeof m); }
+RT_LANE_INLINE void load(F4& out, const float* p) { out = _mm_loadu_ps(p); }
+RT_LANE_INLINE void store(float* p, const F4& v) { _mm_storeu_ps(p, v); }
+
+#define RT_LANE_BINARY(op, intrinsic)                                                            \
+  RT_LANE_INLINE D4 operator op(const D4& a, const D4& b) { return {intrinsic(a.v, b.v)}; }     \
+  RT_LANE_INLINE D4& operator op##=(D4 & a, const D4 & b) { return a = a op b; }
+RT_LANE_BINARY(+, _mm256_add_pd)
+RT_LANE_BINARY(-, _mm256_sub_pd)
+RT_LANE_BINARY(*, _mm256_mul_pd)
+RT_LANE_BINARY(/, _mm256_div_pd)
+#undef RT_LANE_BINARY
+
+RT_LANE_INLINE D4 operator-(const D4& a) { return {_mm256_xor_pd(a.v, _mm256_set1_pd(-0.0))}; }
+
+// Ordered, quiet comparisons: false where either operand is NaN, as in scalar code.
+RT_LANE_INLINE M4 operator<(const D4& a, const D4& b) { return {_mm256_cmp_pd(a.v, b.v, _CMP_LT_OQ)}; }
+RT_LANE_INLINE M4 operator>(const D4& a, const D4& b) { return {_mm256_cmp_pd(a.v, b.v, _CMP_GT_OQ)}; }
+RT_LANE_INLINE M4 operator>=(const D4& a, const D4& b) { return {_mm256_cmp_pd(a.v, b.v, _CMP_GE_OQ)}; }
+
+RT_LANE_INLINE M4 operator&(const M4& a, const M4& b) { return {_mm256_and_pd(a.v, b.v)}; }
+RT_LANE_INLINE M4 operator|(const M4& a, const M4& b) { return {_mm256_or_pd(a.v, b.v)}; }
+RT_LANE_INLINE M4 operator~(const M4& a) { return {_mm256_xor_pd(a.v, _mm256_castsi256_pd(_mm256_set1_epi32(-1)))}; }
+
+RT_LANE_INLINE D4 select(const M4& m, const D4& a, const D4& b) {
+  return {_mm256_or_pd(_mm256_and_pd(m.v, a.v), _mm256_andnot_pd(m.v, b.v))};
+}
+RT_LANE_INLINE D4 abs(const D4& v) { return {_mm256_andnot_pd(_mm256_set1_pd(-0.0), v.v)}; }
+RT_LANE_INLINE D4 sqrt(const D4& v) { return {_mm256_sqrt_pd(v.v)}; }
+RT_LANE_INLINE F4 to_float(const D4& v) { return _mm256_cvtpd_ps(v.v); }
+RT_LANE_INLINE D4 to_double(const F4& v) { return {_mm256_cvtps_pd(v)}; }
+RT_LANE_INLINE __m128i narrow(const M4& m) {
+  return _mm_castps_si128(_mm_shuffle_ps(_mm_castpd_ps(_mm256_castpd256_pd128(m.v)),
+                                         _mm_castpd_ps(_mm256_extractf128_pd(m.v, 1)), _MM_SHUFFLE(2, 0, 2, 0)));
+}
+
+}  // namespace avx2
+#else
+inline namespace sse2 {
 
 struct D4 {
   __m128d lo, hi;  // lanes 0-1 and 2-3; D4{} is all zeros
@@ -78,12 +134,6 @@ RT_LANE_INLINE D4 select(const M4& m, const D4& a, const D4& b) {
           _mm_or_pd(_mm_and_pd(m.hi, a.hi), _mm_andnot_pd(m.hi, b.hi))};
 }
 
-// std::max(a, b) = (a < b) ? b : a, NaN operands included (maxpd differs there).
-RT_LANE_INLINE D4 max(const D4& a, const D4& b) { return select(a < b, b, a); }
-
-// std::clamp(v, lo, hi) = v < lo ? lo : hi < v ? hi : v.
-RT_LANE_INLINE D4 clamp(const D4& v, const D4& lo, const D4& hi) { return select(v < lo, lo, select(hi < v, hi, v)); }
-
 // std::abs: the sign bit cleared.
 RT_LANE_INLINE D4 abs(const D4& v) {
   const __m128d sign = _mm_set1_pd(-0.0);
@@ -101,6 +151,17 @@ RT_LANE_INLINE D4 to_double(const F4& v) { return {_mm_cvtps_pd(v), _mm_cvtps_pd
 RT_LANE_INLINE __m128i narrow(const M4& m) {
   return _mm_castps_si128(_mm_shuffle_ps(_mm_castpd_ps(m.lo), _mm_castpd_ps(m.hi), _MM_SHUFFLE(2, 0, 2, 0)));
 }
+
+}  // namespace sse2
+#endif
+
+// Built on either implementation.
+
+// std::max(a, b) = (a < b) ? b : a, NaN operands included (maxpd differs there).
+RT_LANE_INLINE D4 max(const D4& a, const D4& b) { return select(a < b, b, a); }
+
+// std::clamp(v, lo, hi) = v < lo ? lo : hi < v ? hi : v.
+RT_LANE_INLINE D4 clamp(const D4& v, const D4& lo, const D4& hi) { return select(v < lo, lo, select(hi < v, hi, v)); }
 
 // ray_offset_detail::round_away per lane: p rounded to float32 and, where rounding moved it against
 // `away`, one float further along `away`. next_float's step on the bits: +1 moves a positive float

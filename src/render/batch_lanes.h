@@ -1,0 +1,58 @@
+#pragma once
+// The batch shader's arithmetic over lanes (batch_shade.cpp), in a file of its own so that it can be
+// built twice: for baseline x86-64 (SSE2) and with AVX2 (batch_lanes_avx2.cpp), the loader's CPU
+// choosing once. Both builds compute every lane with the same IEEE operations in the same order
+// (lane_math.h), so they give the same bits; tests/test_batch_shade.cpp compares them.
+
+#include <cstdint>
+
+#include "batch_shade.h"
+
+namespace rt::batch_lanes {
+
+constexpr int kLanes = BatchShader::kLanes;
+using Lanes = BatchShader::Lanes;
+
+// A triangle hit's inputs, gathered lane by lane: vertices and vertex normals (float32 widened to
+// double, world space), the unit-less ray direction, the barycentrics and the back-face flip.
+struct Gathered {
+  Gathered() {}  // not zeroed: every lane in use is written
+  Vec3Lanes<kLanes> p0, p1, p2, n0, n1, n2, d;
+  LaneArray<kLanes> b1, b2;
+  alignas(32) std::int64_t flip[kLanes];  // all ones: BackFace::flipped
+};
+
+struct OriginPolicy {
+  bool fixed = false;     // RayOffset::Mode::fixed
+  double epsilon = 0.0;  // its distance
+};
+
+// What compute_light_lanes reads of one light (world space, double).
+struct LightLanes {
+  bool directional = false, spot = false;
+  double position[3], to_light[3], color[3], attenuation[3], spot_direction[3];
+  double spot_cos_outer = 0.0, cone_width = 0.0;
+  double extent = 0.0;  // the largest coordinate magnitude of the position (robust_shadow_tfar)
+};
+
+// One build of the arithmetic. surfaces: make_surface_point, the shading normal (interpolated,
+// unit, flipped towards the viewer on a two-sided back face), the unit direction and the
+// reflection ray of block.count lanes. light: one light's direction, unshadowed intensity, n.l,
+// n.h, geometric cosine and shadow ray (shade_surface's, before the pow of the highlight). terms:
+// the light's term, intensity (ambient + diffuse n.l + specular pow(n.h, s)), the highlight zero
+// where it is skipped.
+struct Kernels {
+  void (*surfaces)(const Gathered& in, const OriginPolicy& policy, Lanes& block);
+  void (*light)(const LightLanes& light, const OriginPolicy& policy, const Lanes& block, Lanes::Light& out,
+                Vec3Lanes<kLanes>& intensity, LaneArray<kLanes>& n_dot_l, LaneArray<kLanes>& n_dot_h);
+  void (*terms)(const Lanes& block, const Vec3Lanes<kLanes>& intensity, const LaneArray<kLanes>& n_dot_l,
+                const LaneArray<kLanes>& power, Lanes::Light& out);
+};
+
+// The baseline build, and the AVX2 one (nullptr when the CPU lacks AVX2).
+const Kernels& baseline_kernels();
+const Kernels* avx2_kernels();
+// The AVX2 build where the CPU has it, else the baseline.
+const Kernels& best_kernels();
+
+}  // namespace rt::batch_lanes
