@@ -302,6 +302,7 @@ TEST_CASE("batch shading lanes: the AVX2 build computes the baseline build's bit
     const rt::batch_lanes::OriginPolicy policy{round % 2 == 1, 1e-4};
     rt::BatchShader::Lanes a, b;
     a.count = b.count = 1 + round % kLanes;
+    a.reflections = b.reflections = a.highlights = b.highlights = true;
     for (rt::BatchShader::Lanes* lanes : {&a, &b}) {
       fill(lanes->ambient, 1.0);
       fill(lanes->diffuse, 1.0);

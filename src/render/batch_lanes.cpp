@@ -117,6 +117,7 @@ void surfaces(const Gathered& in, const OriginPolicy& policy, Lanes& block) {
     const D4 sx = sign * (nx * n_scale), sy = sign * (ny * n_scale), sz = sign * (nz * n_scale);
     store(block.normal, g, sx, sy, sz);
 
+    if (!block.reflections) continue;
     // The reflection ray: reflect_direction and offset_ray_origin.
     const D4 twice = lm::broadcast(2.0) * (ux * sx + uy * sy + uz * sz);
     const D4 rx = ux - twice * sx, ry = uy - twice * sy, rz = uz - twice * sz;
@@ -160,11 +161,13 @@ void light(const LightLanes& light, const OriginPolicy& policy, const Lanes& blo
     load(n, block.normal, g);
     load(d, block.direction, g);
     load(gn, block.geometric_normal, g);
-    const D4 hx = lx + -d.x, hy = ly + -d.y, hz = lz + -d.z;
-    const D4 half_length = lm::sqrt(hx * hx + hy * hy + hz * hz);
     lm::store(n_dot_l.v + g, lm::max(n.x * lx + n.y * ly + n.z * lz, zero));
-    lm::store(n_dot_h.v + g, lm::select(half_length > zero, lm::max((n.x * hx + n.y * hy + n.z * hz) / half_length, zero),
-                                        zero));
+    if (block.highlights) {  // else n_dot_h is never read
+      const D4 hx = lx + -d.x, hy = ly + -d.y, hz = lz + -d.z;
+      const D4 half_length = lm::sqrt(hx * hx + hy * hy + hz * hz);
+      lm::store(n_dot_h.v + g, lm::select(half_length > zero, lm::max((n.x * hx + n.y * hy + n.z * hz) / half_length, zero),
+                                          zero));
+    }
     const D4 cosine = gn.x * lx + gn.y * ly + gn.z * lz;
     lm::store(out.geometric_cosine.v + g, cosine);
 

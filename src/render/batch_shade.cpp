@@ -68,9 +68,9 @@ bool BatchShader::batchable(const Hit& hit) const {
 }
 
 void BatchShader::compute_lanes(Lanes& lanes, const std::array<Ray, kLanes>& rays,
-                                const std::array<Hit, kLanes>& hits) const {
+                                const std::array<Hit, kLanes>& hits, int depth) const {
   if (lanes.count == 0) return;
-  compute_surfaces(lanes, rays, hits);
+  compute_surfaces(lanes, rays, hits, depth);
   lanes.lights.resize(context_.scene.lights.size());
   for (std::size_t j = 0; j < context_.scene.lights.size(); ++j)
     if (context_.plan.lights[j].contributes) compute_light(lanes, j);
@@ -90,7 +90,7 @@ void BatchShader::prepare(std::span<const Ray> rays, std::span<const Hit> hits, 
     ++count;
   }
   work.lanes.count = count;
-  compute_lanes(work.lanes, lane_rays, lane_hits);
+  compute_lanes(work.lanes, lane_rays, lane_hits, 0);
 }
 
 void BatchShader::prefetch_triangles(std::span<const Hit> hits) const {
@@ -115,10 +115,12 @@ using batch_lanes::OriginPolicy;
 }  // namespace
 
 void BatchShader::compute_surfaces(Lanes& block, const std::array<Ray, kLanes>& rays,
-                                   const std::array<Hit, kLanes>& hits) const {
+                                   const std::array<Hit, kLanes>& hits, int depth) const {
   const FlatScene& flat = context_.flat;
   const int lanes = block.count;
   Gathered in;
+  block.highlights = false;
+  bool reflecting = false;
   // Indices first, then every vertex line requested at once, then the vertices: the cache misses
   // of all lanes overlap.
   std::array<Vec3u, kLanes> triangles;
@@ -155,7 +157,11 @@ void BatchShader::compute_surfaces(Lanes& block, const std::array<Ray, kLanes>& 
     block.specular.z.v[i] = plain.specular.z;
     block.shininess.v[i] = plain.shininess;
     block.highlight[i] = plain.highlight ? -1 : 0;
+    block.highlights = block.highlights || plain.highlight;
+    reflecting = reflecting || (plain.reflects && plain.reflective != Vec3d(0.0));
   }
+  // What shade_lane reads to make a reflection ray: computed unless no lane can make one.
+  block.reflections = depth < context_.scene.settings.max_depth && (reflecting || !context_.plan.options.prune);
   // Lanes past the count (up to the next multiple of 4) are computed and never read: give them a
   // copy of lane 0, so that no uninitialised value enters the arithmetic.
   for (int i = lanes; i % 4 != 0; ++i) {
@@ -328,7 +334,7 @@ void BatchShader::shade_wave(Workspace& work, int depth, RayCounts& counts) cons
   std::array<Hit, kLanes> lane_hits;
   std::array<std::int32_t, kLanes> lane_index;
   const auto shade_lanes = [&] {
-    compute_lanes(work.lanes, lane_rays, lane_hits);
+    compute_lanes(work.lanes, lane_rays, lane_hits, depth);
     for (int i = 0; i < work.lanes.count; ++i) {
       Secondary& secondary = wave[std::size_t(lane_index[std::size_t(i)])];
       ImmediateSink sink{context_.accel, counts, context_.scene.lights.size(),

@@ -43,6 +43,8 @@ class BatchShader {
   // The shading arithmetic of up to kLanes hits; one per render thread, reused.
   struct Lanes {
     int count = 0;
+    bool reflections = false;  // some lane may trace a reflection ray: reflected, reflection_origin are set
+    bool highlights = false;   // some lane evaluates the highlight (highlight[i] != 0)
     std::array<std::uint32_t, kLanes> material{};
     Vec3Lanes<kLanes> point, geometric_normal, normal, direction;  // normal: shading, unit; direction: unit
     LaneArray<kLanes> error_bound;  // SurfacePoint::error_bound
@@ -123,9 +125,11 @@ class BatchShader {
   bool batchable(const Hit& hit) const;
   // A cache hint for the triangle indices and materials that compute_surfaces gathers for `hits`.
   void prefetch_triangles(std::span<const Hit> hits) const;
-  // The arithmetic of lanes.count hits (rays[i], hits[i] batchable).
-  void compute_lanes(Lanes& lanes, const std::array<Ray, kLanes>& rays, const std::array<Hit, kLanes>& hits) const;
-  void compute_surfaces(Lanes& lanes, const std::array<Ray, kLanes>& rays, const std::array<Hit, kLanes>& hits) const;
+  // The arithmetic of lanes.count hits at ray depth `depth` (rays[i], hits[i] batchable).
+  void compute_lanes(Lanes& lanes, const std::array<Ray, kLanes>& rays, const std::array<Hit, kLanes>& hits,
+                     int depth) const;
+  void compute_surfaces(Lanes& lanes, const std::array<Ray, kLanes>& rays, const std::array<Hit, kLanes>& hits,
+                        int depth) const;
   void compute_light(Lanes& lanes, std::size_t light) const;
   // The light terms of lane i at `depth` through `sink` (lit / query, as shade_surface's Shadows),
   // then its reflection ray, if any, appended to `next` (parent `parent`); returns its index or -1.
