@@ -105,8 +105,9 @@ class BatchShader {
   void finish_camera_hit(Workspace& work, int k, const Ray& ray, const Hit& hit, RayCounts& counts,
                          PendingShading& pending) const;
 
-  // shade_camera_hit for a camera ray that hit nothing: the background.
-  void add_miss(PendingShading& pending) const { pending.pixels.emplace_back().emission = background_; }
+  // The colour of a camera ray that hit nothing: the background, as finish_camera_hit gives it for
+  // shade_camera_hit's record of the miss.
+  Color background() const { return Color(background_); }
 
   // Traces the block's reflection rays depth by depth, shades their hits (shadow rays traced one by
   // one, as find_color traces them) and sets each reflecting pixel's PendingShading::reflection.

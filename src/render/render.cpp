@@ -217,6 +217,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
         else
           rays[k] = ray_through_pixel_sample(frame, xs[k], ys[k], s, spp);
       pending.clear();
+      std::array<std::int32_t, kBlockPixels> pixel_of;  // per pixel k: its record in pending.pixels, or -1
       if (batching) batch.start_block(state.batch);
       std::uint64_t start = 0;
       for (int p = 0; p < packets; ++p) {
@@ -239,12 +240,13 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
                         state.batch);
         for (int k = first; k < first + count; ++k) {
           const int lane = k - first;
-          if (batching && state.batch.lane_of[std::size_t(lane)] >= 0) {
-            batch.finish_camera_hit(state.batch, lane, rays[std::size_t(k)], hits[std::size_t(k)], counts, pending);
+          if (batching && !timed[k] && !hits[k].found()) {
+            pixel_of[k] = -1;  // the background, without a record
             continue;
           }
-          if (batching && !timed[k] && !hits[k].found()) {
-            batch.add_miss(pending);
+          pixel_of[k] = static_cast<std::int32_t>(pending.pixels.size());
+          if (batching && state.batch.lane_of[std::size_t(lane)] >= 0) {
+            batch.finish_camera_hit(state.batch, lane, rays[std::size_t(k)], hits[std::size_t(k)], counts, pending);
             continue;
           }
           if (timed[k]) start = __rdtsc();
@@ -284,7 +286,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
         const std::uint64_t share = (__rdtsc() - start) / std::uint64_t(shadow_count);
         for (int k = 0; k < n; ++k) {
           if (!timed[k]) continue;
-          const PendingShading::Pixel& p = pending.pixels[std::size_t(k)];
+          const PendingShading::Pixel& p = pending.pixels[std::size_t(pixel_of[k])];
           for (std::uint32_t t = p.first_term; t < p.first_term + p.term_count; ++t) {
             const std::uint32_t query = pending.terms[t].query;
             if (query == PendingShading::kNoQuery) continue;
@@ -297,7 +299,9 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
       for (int k = 0; k < n; ++k) {
         if (timed[k]) start = __rdtsc();
         const std::uint64_t pixel = std::uint64_t(ys[k]) * std::uint64_t(width) + std::uint64_t(xs[k]);
-        const Color c = guarded(finish_camera_hit(pending, std::size_t(k), state.blocked), state, pixel);
+        const Color c = guarded(pixel_of[k] < 0 ? batch.background()
+                                                : finish_camera_hit(pending, std::size_t(pixel_of[k]), state.blocked),
+                                state, pixel);
         if (spp == 1 || one_sample)
           state.tile_colors[std::size_t((ys[k] - state.tile_y0) * tile + xs[k] - state.tile_x0)] = c;
         else
