@@ -19,12 +19,12 @@ struct ShadowRecorder {
   RayCounts& counts;
   std::size_t light_count;
 
-  void lit(std::size_t, const Vec3d& term, int = 0) {
+  [[gnu::always_inline]] void lit(std::size_t, const Vec3d& term, int = 0) {
     PendingShading::Term& t = pending.terms.emplace_back();
     t.term = term;
     t.query = PendingShading::kNoQuery;
   }
-  void query(std::size_t slot, const Vec3d& term, const Ray& shadow_ray, int = 0) {
+  [[gnu::always_inline]] void query(std::size_t slot, const Vec3d& term, const Ray& shadow_ray, int = 0) {
     counts.add_shadow_query(light_count, slot);
     PendingShading::Term& t = pending.terms.emplace_back();
     t.term = term;
