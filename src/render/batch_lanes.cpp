@@ -33,7 +33,8 @@ struct Xyz {
   lm::load(out.z, v.z.v + g);
 }
 
-[[gnu::always_inline]] static inline void store(Vec3Lanes<kLanes>& to, int g, const D4& x, const D4& y, const D4& z) {
+[[gnu::always_inline]] static inline void store(Vec3Lanes<kLanes>& to, int g, const D4& x, const D4& y,
+                                                const D4& z) {
   lm::store(to.x.v + g, x);
   lm::store(to.y.v + g, y);
   lm::store(to.z.v + g, z);
@@ -41,8 +42,9 @@ struct Xyz {
 
 // offset_ray_origin for lanes g..g+3 along directions whose dot product with the geometric normal
 // is `cosine`: off the surface along the normal, to the side the ray goes.
-[[gnu::always_inline]] static inline void set_origins(const Lanes& block, int g, const D4& cosine, const OriginPolicy& policy,
-                                               Vec3fLanes<kLanes>& origin) {
+[[gnu::always_inline]] static inline void set_origins(const Lanes& block, int g, const D4& cosine,
+                                                      const OriginPolicy& policy,
+                                                      Vec3fLanes<kLanes>& origin) {
   const D4 sign = lm::select(cosine >= D4{}, lm::broadcast(1.0), lm::broadcast(-1.0));  // n or -n, exactly
   Xyz n, p;
   load(n, block.geometric_normal, g);
@@ -94,8 +96,9 @@ void surfaces(const Gathered& in, const OriginPolicy& policy, Lanes& block) {
     const D4 kappa = lm::select(has_area, l1 * l2 / area2, one);
     const D4 longest = lm::max(lm::max(l1, l2), l3);
     const D4 largest = lm::max(lm::max(lm::abs(px), lm::abs(py)), lm::abs(pz));
-    lm::store(block.error_bound.v + g, lm::broadcast(kScaledRoundoff) * (lm::broadcast(std::sqrt(3.0)) * largest +
-                                                                         (lm::broadcast(4.0) + lm::broadcast(2.0) * kappa) * longest));
+    lm::store(block.error_bound.v + g,
+              lm::broadcast(kScaledRoundoff) * (lm::broadcast(std::sqrt(3.0)) * largest +
+                                                (lm::broadcast(4.0) + lm::broadcast(2.0) * kappa) * longest));
 
     Xyz n0, n1, n2, d;
     load(n0, in.n0, g);
@@ -129,11 +132,13 @@ void surfaces(const Gathered& in, const OriginPolicy& policy, Lanes& block) {
 // One light's direction, unshadowed intensity, n.l, n.h, geometric cosine and shadow ray at
 // block.count lanes (shade_surface's, before the pow of the highlight).
 void light(const LightLanes& light, const OriginPolicy& policy, const Lanes& block, Lanes::Light& out,
-                         Vec3Lanes<kLanes>& intensity, LaneArray<kLanes>& n_dot_l, LaneArray<kLanes>& n_dot_h) {
+           Vec3Lanes<kLanes>& intensity, LaneArray<kLanes>& n_dot_l, LaneArray<kLanes>& n_dot_h) {
   const D4 zero{};
   for (int g = 0; g < block.count; g += 4) {
-    D4 lx = lm::broadcast(light.to_light[0]), ly = lm::broadcast(light.to_light[1]), lz = lm::broadcast(light.to_light[2]);
-    D4 ir = lm::broadcast(light.color[0]), ig = lm::broadcast(light.color[1]), ib = lm::broadcast(light.color[2]);
+    D4 lx = lm::broadcast(light.to_light[0]), ly = lm::broadcast(light.to_light[1]),
+       lz = lm::broadcast(light.to_light[2]);
+    D4 ir = lm::broadcast(light.color[0]), ig = lm::broadcast(light.color[1]),
+       ib = lm::broadcast(light.color[2]);
     M4 on_point{};
     if (!light.directional) {
       Xyz p;
@@ -143,14 +148,17 @@ void light(const LightLanes& light, const OriginPolicy& policy, const Lanes& blo
       const D4 distance = lm::sqrt(ox * ox + oy * oy + oz * oz);
       on_point = ~(distance > zero);
       lx = ox / distance, ly = oy / distance, lz = oz / distance;
-      const D4 attenuation = lm::broadcast(light.attenuation[0]) + lm::broadcast(light.attenuation[1]) * distance +
+      const D4 attenuation = lm::broadcast(light.attenuation[0]) +
+                             lm::broadcast(light.attenuation[1]) * distance +
                              lm::broadcast(light.attenuation[2]) * distance * distance;
       ir /= attenuation, ig /= attenuation, ib /= attenuation;
       if (light.spot) {
-        const D4 along = lm::broadcast(light.spot_direction[0]) * -lx + lm::broadcast(light.spot_direction[1]) * -ly +
+        const D4 along = lm::broadcast(light.spot_direction[0]) * -lx +
+                         lm::broadcast(light.spot_direction[1]) * -ly +
                          lm::broadcast(light.spot_direction[2]) * -lz;
-        const D4 cone = lm::clamp((along - lm::broadcast(light.spot_cos_outer)) / lm::broadcast(light.cone_width), zero,
-                                  lm::broadcast(1.0));
+        const D4 cone =
+            lm::clamp((along - lm::broadcast(light.spot_cos_outer)) / lm::broadcast(light.cone_width), zero,
+                      lm::broadcast(1.0));
         ir *= cone * cone, ig *= cone * cone, ib *= cone * cone;
       }
     }
@@ -165,8 +173,9 @@ void light(const LightLanes& light, const OriginPolicy& policy, const Lanes& blo
     if (block.highlights) {  // else n_dot_h is never read
       const D4 hx = lx + -d.x, hy = ly + -d.y, hz = lz + -d.z;
       const D4 half_length = lm::sqrt(hx * hx + hy * hy + hz * hz);
-      lm::store(n_dot_h.v + g, lm::select(half_length > zero, lm::max((n.x * hx + n.y * hy + n.z * hz) / half_length, zero),
-                                          zero));
+      lm::store(n_dot_h.v + g,
+                lm::select(half_length > zero, lm::max((n.x * hx + n.y * hy + n.z * hz) / half_length, zero),
+                           zero));
     }
     const D4 cosine = gn.x * lx + gn.y * ly + gn.z * lz;
     lm::store(out.geometric_cosine.v + g, cosine);
@@ -181,20 +190,22 @@ void light(const LightLanes& light, const OriginPolicy& policy, const Lanes& blo
     lm::load(fx, out.shadow_origin.x + g);
     lm::load(fy, out.shadow_origin.y + g);
     lm::load(fz, out.shadow_origin.z + g);
-    const D4 ox = lm::broadcast(light.position[0]) - lm::to_double(fx), oy = lm::broadcast(light.position[1]) - lm::to_double(fy),
+    const D4 ox = lm::broadcast(light.position[0]) - lm::to_double(fx),
+             oy = lm::broadcast(light.position[1]) - lm::to_double(fy),
              oz = lm::broadcast(light.position[2]) - lm::to_double(fz);
     const D4 distance = lm::sqrt(ox * ox + oy * oy + oz * oz);
     lm::store(out.shadow_distance.v + g,
               policy.fixed ? distance - lm::broadcast(policy.epsilon)
-                           : distance - lm::broadcast(kScaledRoundoff) * (lm::broadcast(std::sqrt(3.0)) * lm::broadcast(light.extent) +
-                                                                          lm::broadcast(4.0) * distance));
+                           : distance - lm::broadcast(kScaledRoundoff) *
+                                            (lm::broadcast(std::sqrt(3.0)) * lm::broadcast(light.extent) +
+                                             lm::broadcast(4.0) * distance));
   }
 }
 
 // The light term at block.count lanes: intensity (ambient + diffuse n.l + specular pow(n.h, s)),
 // the highlight Vec3d(0.0) where it is skipped.
 void terms(const Lanes& block, const Vec3Lanes<kLanes>& intensity, const LaneArray<kLanes>& n_dot_l,
-                        const LaneArray<kLanes>& power, Lanes::Light& out) {
+           const LaneArray<kLanes>& power, Lanes::Light& out) {
   const D4 zero{};
   for (int g = 0; g < block.count; g += 4) {
     M4 highlight;
@@ -207,7 +218,8 @@ void terms(const Lanes& block, const Vec3Lanes<kLanes>& intensity, const LaneArr
     load(ambient, block.ambient, g);
     load(diffuse, block.diffuse, g);
     load(specular, block.specular, g);
-    const D4 hr = lm::select(highlight, specular.x * pw, zero), hg = lm::select(highlight, specular.y * pw, zero),
+    const D4 hr = lm::select(highlight, specular.x * pw, zero),
+             hg = lm::select(highlight, specular.y * pw, zero),
              hb = lm::select(highlight, specular.z * pw, zero);
     store(out.term, g, in.x * (ambient.x + diffuse.x * ndl + hr), in.y * (ambient.y + diffuse.y * ndl + hg),
           in.z * (ambient.z + diffuse.z * ndl + hb));

@@ -1,7 +1,7 @@
 #pragma once
 // The batch shader's arithmetic over lanes (batch_shade.cpp), in a file of its own so that it can be
-// built twice: for baseline x86-64 (SSE2) and with AVX2 (batch_lanes_avx2.cpp), the loader's CPU
-// choosing once. Both builds compute every lane with the same IEEE operations in the same order
+// built twice: for baseline x86-64 (SSE2) and with AVX2 (batch_lanes_avx2.cpp), chosen once by
+// what the CPU has. Both builds compute every lane with the same IEEE operations in the same order
 // (lane_math.h), so they give the same bits; tests/test_batch_shade.cpp compares them.
 
 #include <cstdint>
@@ -19,15 +19,16 @@ struct Gathered {
   Gathered() {}  // not zeroed: every lane in use is written
   Vec3Lanes<kLanes> p0, p1, p2, n0, n1, n2, d;
   LaneArray<kLanes> b1, b2;
-  alignas(32) std::int64_t flip[kLanes];  // all ones: BackFace::flipped
+  alignas(32) std::int64_t flip[kLanes];  // all ones: BackFace::flipped, else 0
 };
 
+// RayOffset, as the lanes read it.
 struct OriginPolicy {
-  bool fixed = false;     // RayOffset::Mode::fixed
-  double epsilon = 0.0;  // its distance
+  bool fixed = false;    // RayOffset::Mode::fixed
+  double epsilon = 0.0;  // its distance, world units
 };
 
-// What compute_light_lanes reads of one light (world space, double).
+// What Kernels::light reads of one light (world space, double).
 struct LightLanes {
   bool directional = false, spot = false;
   double position[3], to_light[3], color[3], attenuation[3], spot_direction[3];

@@ -2,25 +2,24 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 
 #include "rt/render/dielectric.h"
 #include "batch_lanes.h"
 #include "shading_margins.h"
 #include "shadow_records.h"
 
-// Every expression below mirrors shade_surface's (and glm's: dot(a, b) = (ax bx + ay by) + az bz,
-// normalize(v) = v * (1 / sqrt(dot(v, v))), v / s divides each component) operation for
-// operation. The loops over lanes may therefore be vectorised without changing a bit (SIMD
-// division and square root are correctly rounded like the scalar ones), provided nothing is
-// contracted into an FMA (this file is compiled with -ffp-contract=off) and pow stays the scalar
-// libm call. GCC 12 does not vectorise them yet ("control flow in loop"; docs/performance.md).
+// The arithmetic over lanes is in batch_lanes.cpp, which mirrors shade_surface's expressions
+// (and glm's: dot(a, b) = (ax bx + ay by) + az bz, normalize(v) = v * (1 / sqrt(dot(v, v))), v / s
+// divides each component) operation for operation in SIMD. This file gathers the lanes' inputs,
+// calls libm's pow lane by lane, and applies shade_surface's rules and records hit by hit.
 
 namespace rt {
 
 namespace {
 
-using ray_offset_detail::kScaledRoundoff;
+using batch_lanes::Gathered;
+using batch_lanes::LightLanes;
+using batch_lanes::OriginPolicy;
 
 void count_at(std::vector<std::uint64_t>& counts, std::size_t index) {
   if (counts.size() <= index) counts.resize(index + 1, 0);
@@ -106,13 +105,9 @@ void BatchShader::start_block(Workspace& work) const {
   work.waves[1].clear();
 }
 
-namespace {
-
-using batch_lanes::Gathered;
-using batch_lanes::LightLanes;
-using batch_lanes::OriginPolicy;
-
-}  // namespace
+batch_lanes::OriginPolicy BatchShader::origin_policy() const {
+  return {context_.ray_offset.mode == RayOffset::Mode::fixed, context_.ray_offset.epsilon};
+}
 
 void BatchShader::compute_surfaces(Lanes& block, const std::array<Ray, kLanes>& rays,
                                    const std::array<Hit, kLanes>& hits, int depth) const {
@@ -177,8 +172,7 @@ void BatchShader::compute_surfaces(Lanes& block, const std::array<Ray, kLanes>& 
     block.shininess.v[i] = block.shininess.v[0];
     block.highlight[i] = block.highlight[0];
   }
-  batch_lanes::best_kernels().surfaces(in, OriginPolicy{context_.ray_offset.mode == RayOffset::Mode::fixed, context_.ray_offset.epsilon},
-                        block);
+  batch_lanes::best_kernels().surfaces(in, origin_policy(), block);
 }
 
 void BatchShader::compute_light(Lanes& block, std::size_t j) const {
@@ -200,8 +194,7 @@ void BatchShader::compute_light(Lanes& block, std::size_t j) const {
   Lanes::Light& out = block.lights[j];
   LaneArray<kLanes> n_dot_h, n_dot_l, power;
   Vec3Lanes<kLanes> intensity;
-  batch_lanes::best_kernels().light(params, OriginPolicy{context_.ray_offset.mode == RayOffset::Mode::fixed, context_.ray_offset.epsilon},
-                      block, out, intensity, n_dot_l, n_dot_h);
+  batch_lanes::best_kernels().light(params, origin_policy(), block, out, intensity, n_dot_l, n_dot_h);
   // pow stays libm's scalar call, lane by lane.
   for (int i = 0; i < block.count; ++i)
     power.v[i] = block.highlight[i] != 0 ? std::pow(n_dot_h.v[i], block.shininess.v[i]) : 0.0;

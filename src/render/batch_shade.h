@@ -15,6 +15,10 @@
 
 namespace rt {
 
+namespace batch_lanes {
+struct OriginPolicy;
+}
+
 // kLanes doubles, one per hit of a batch.
 template <int kLanes>
 struct alignas(64) LaneArray {
@@ -124,6 +128,7 @@ class BatchShader {
     Vec3d ambient{0.0}, diffuse{0.0}, specular{0.0}, reflective{0.0}, emission{0.0};
   };
   bool batchable(const Hit& hit) const;
+  batch_lanes::OriginPolicy origin_policy() const;
   // A cache hint for the triangle indices and materials that compute_surfaces gathers for `hits`.
   void prefetch_triangles(std::span<const Hit> hits) const;
   // The arithmetic of lanes.count hits at ray depth `depth` (rays[i], hits[i] batchable).

@@ -8,10 +8,10 @@
 // types and helpers never share a name. (GCC's generic 32-byte vectors lower their comparisons to
 // scalar code without AVX, hence the intrinsics.)
 
+#include <immintrin.h>
+
 #include <cstdint>
 #include <cstring>
-
-#include <immintrin.h>
 
 namespace rt::lane_math {
 
@@ -28,44 +28,85 @@ struct M4 {  // a comparison's result: all ones or all zeros per 64-bit lane
 };
 using F4 = __m128;  // four float32 lanes
 
-RT_LANE_INLINE D4 broadcast(double x) { return {_mm256_set1_pd(x)}; }
-RT_LANE_INLINE void load(D4& out, const double* p) { out.v = _mm256_loadu_pd(p); }
-RT_LANE_INLINE void store(double* p, const D4& v) { _mm256_storeu_pd(p, v.v); }
-RT_LANE_INLINE void load(M4& out, const std::int64_t* p) { std::memcpy(&out, p, sizeof out); }
-RT_LANE_INLINE void store(std::int64_t* p, const M4& m) { std::memcpy(p, &m, sizeof m); }
-RT_LANE_INLINE void load(F4& out, const float* p) { out = _mm_loadu_ps(p); }
-RT_LANE_INLINE void store(float* p, const F4& v) { _mm_storeu_ps(p, v); }
+RT_LANE_INLINE D4 broadcast(double x) {
+  return {_mm256_set1_pd(x)};
+}
+RT_LANE_INLINE void load(D4& out, const double* p) {
+  out.v = _mm256_loadu_pd(p);
+}
+RT_LANE_INLINE void store(double* p, const D4& v) {
+  _mm256_storeu_pd(p, v.v);
+}
+RT_LANE_INLINE void load(M4& out, const std::int64_t* p) {
+  std::memcpy(&out, p, sizeof out);
+}
+RT_LANE_INLINE void store(std::int64_t* p, const M4& m) {
+  std::memcpy(p, &m, sizeof m);
+}
+RT_LANE_INLINE void load(F4& out, const float* p) {
+  out = _mm_loadu_ps(p);
+}
+RT_LANE_INLINE void store(float* p, const F4& v) {
+  _mm_storeu_ps(p, v);
+}
 
-#define RT_LANE_BINARY(op, intrinsic)                                                            \
-  RT_LANE_INLINE D4 operator op(const D4& a, const D4& b) { return {intrinsic(a.v, b.v)}; }     \
-  RT_LANE_INLINE D4& operator op##=(D4 & a, const D4 & b) { return a = a op b; }
+#define RT_LANE_BINARY(op, intrinsic)                       \
+  RT_LANE_INLINE D4 operator op(const D4& a, const D4& b) { \
+    return {intrinsic(a.v, b.v)};                           \
+  }                                                         \
+  RT_LANE_INLINE D4& operator op##=(D4& a, const D4& b) {   \
+    return a = a op b;                                      \
+  }
 RT_LANE_BINARY(+, _mm256_add_pd)
 RT_LANE_BINARY(-, _mm256_sub_pd)
 RT_LANE_BINARY(*, _mm256_mul_pd)
 RT_LANE_BINARY(/, _mm256_div_pd)
 #undef RT_LANE_BINARY
 
-RT_LANE_INLINE D4 operator-(const D4& a) { return {_mm256_xor_pd(a.v, _mm256_set1_pd(-0.0))}; }
+RT_LANE_INLINE D4 operator-(const D4& a) {
+  return {_mm256_xor_pd(a.v, _mm256_set1_pd(-0.0))};
+}
 
 // Ordered, quiet comparisons: false where either operand is NaN, as in scalar code.
-RT_LANE_INLINE M4 operator<(const D4& a, const D4& b) { return {_mm256_cmp_pd(a.v, b.v, _CMP_LT_OQ)}; }
-RT_LANE_INLINE M4 operator>(const D4& a, const D4& b) { return {_mm256_cmp_pd(a.v, b.v, _CMP_GT_OQ)}; }
-RT_LANE_INLINE M4 operator>=(const D4& a, const D4& b) { return {_mm256_cmp_pd(a.v, b.v, _CMP_GE_OQ)}; }
+RT_LANE_INLINE M4 operator<(const D4& a, const D4& b) {
+  return {_mm256_cmp_pd(a.v, b.v, _CMP_LT_OQ)};
+}
+RT_LANE_INLINE M4 operator>(const D4& a, const D4& b) {
+  return {_mm256_cmp_pd(a.v, b.v, _CMP_GT_OQ)};
+}
+RT_LANE_INLINE M4 operator>=(const D4& a, const D4& b) {
+  return {_mm256_cmp_pd(a.v, b.v, _CMP_GE_OQ)};
+}
 
-RT_LANE_INLINE M4 operator&(const M4& a, const M4& b) { return {_mm256_and_pd(a.v, b.v)}; }
-RT_LANE_INLINE M4 operator|(const M4& a, const M4& b) { return {_mm256_or_pd(a.v, b.v)}; }
-RT_LANE_INLINE M4 operator~(const M4& a) { return {_mm256_xor_pd(a.v, _mm256_castsi256_pd(_mm256_set1_epi32(-1)))}; }
+RT_LANE_INLINE M4 operator&(const M4& a, const M4& b) {
+  return {_mm256_and_pd(a.v, b.v)};
+}
+RT_LANE_INLINE M4 operator|(const M4& a, const M4& b) {
+  return {_mm256_or_pd(a.v, b.v)};
+}
+RT_LANE_INLINE M4 operator~(const M4& a) {
+  return {_mm256_xor_pd(a.v, _mm256_castsi256_pd(_mm256_set1_epi32(-1)))};
+}
 
 RT_LANE_INLINE D4 select(const M4& m, const D4& a, const D4& b) {
   return {_mm256_or_pd(_mm256_and_pd(m.v, a.v), _mm256_andnot_pd(m.v, b.v))};
 }
-RT_LANE_INLINE D4 abs(const D4& v) { return {_mm256_andnot_pd(_mm256_set1_pd(-0.0), v.v)}; }
-RT_LANE_INLINE D4 sqrt(const D4& v) { return {_mm256_sqrt_pd(v.v)}; }
-RT_LANE_INLINE F4 to_float(const D4& v) { return _mm256_cvtpd_ps(v.v); }
-RT_LANE_INLINE D4 to_double(const F4& v) { return {_mm256_cvtps_pd(v)}; }
+RT_LANE_INLINE D4 abs(const D4& v) {
+  return {_mm256_andnot_pd(_mm256_set1_pd(-0.0), v.v)};
+}
+RT_LANE_INLINE D4 sqrt(const D4& v) {
+  return {_mm256_sqrt_pd(v.v)};
+}
+RT_LANE_INLINE F4 to_float(const D4& v) {
+  return _mm256_cvtpd_ps(v.v);
+}
+RT_LANE_INLINE D4 to_double(const F4& v) {
+  return {_mm256_cvtps_pd(v)};
+}
 RT_LANE_INLINE __m128i narrow(const M4& m) {
   return _mm_castps_si128(_mm_shuffle_ps(_mm_castpd_ps(_mm256_castpd256_pd128(m.v)),
-                                         _mm_castpd_ps(_mm256_extractf128_pd(m.v, 1)), _MM_SHUFFLE(2, 0, 2, 0)));
+                                         _mm_castpd_ps(_mm256_extractf128_pd(m.v, 1)),
+                                         _MM_SHUFFLE(2, 0, 2, 0)));
 }
 
 }  // namespace avx2
@@ -80,7 +121,9 @@ struct M4 {  // a comparison's result: all ones or all zeros per 64-bit lane
 };
 using F4 = __m128;  // four float32 lanes
 
-RT_LANE_INLINE D4 broadcast(double x) { return {_mm_set1_pd(x), _mm_set1_pd(x)}; }
+RT_LANE_INLINE D4 broadcast(double x) {
+  return {_mm_set1_pd(x), _mm_set1_pd(x)};
+}
 
 RT_LANE_INLINE void load(D4& out, const double* p) {
   out.lo = _mm_loadu_pd(p);
@@ -90,16 +133,26 @@ RT_LANE_INLINE void store(double* p, const D4& v) {
   _mm_storeu_pd(p, v.lo);
   _mm_storeu_pd(p + 2, v.hi);
 }
-RT_LANE_INLINE void load(M4& out, const std::int64_t* p) { std::memcpy(&out, p, sizeof out); }
-RT_LANE_INLINE void store(std::int64_t* p, const M4& m) { std::memcpy(p, &m, sizeof m); }
-RT_LANE_INLINE void load(F4& out, const float* p) { out = _mm_loadu_ps(p); }
-RT_LANE_INLINE void store(float* p, const F4& v) { _mm_storeu_ps(p, v); }
+RT_LANE_INLINE void load(M4& out, const std::int64_t* p) {
+  std::memcpy(&out, p, sizeof out);
+}
+RT_LANE_INLINE void store(std::int64_t* p, const M4& m) {
+  std::memcpy(p, &m, sizeof m);
+}
+RT_LANE_INLINE void load(F4& out, const float* p) {
+  out = _mm_loadu_ps(p);
+}
+RT_LANE_INLINE void store(float* p, const F4& v) {
+  _mm_storeu_ps(p, v);
+}
 
-#define RT_LANE_BINARY(op, intrinsic)                                                   \
-  RT_LANE_INLINE D4 operator op(const D4& a, const D4& b) {                             \
-    return {intrinsic(a.lo, b.lo), intrinsic(a.hi, b.hi)};                              \
-  }                                                                                     \
-  RT_LANE_INLINE D4& operator op##=(D4 & a, const D4 & b) { return a = a op b; }
+#define RT_LANE_BINARY(op, intrinsic)                       \
+  RT_LANE_INLINE D4 operator op(const D4& a, const D4& b) { \
+    return {intrinsic(a.lo, b.lo), intrinsic(a.hi, b.hi)};  \
+  }                                                         \
+  RT_LANE_INLINE D4& operator op##=(D4& a, const D4& b) {   \
+    return a = a op b;                                      \
+  }
 RT_LANE_BINARY(+, _mm_add_pd)
 RT_LANE_BINARY(-, _mm_sub_pd)
 RT_LANE_BINARY(*, _mm_mul_pd)
@@ -112,17 +165,21 @@ RT_LANE_INLINE D4 operator-(const D4& a) {
   return {_mm_xor_pd(a.lo, sign), _mm_xor_pd(a.hi, sign)};
 }
 
-#define RT_LANE_COMPARE(op, intrinsic)                                 \
-  RT_LANE_INLINE M4 operator op(const D4& a, const D4& b) {            \
-    return {intrinsic(a.lo, b.lo), intrinsic(a.hi, b.hi)};             \
+#define RT_LANE_COMPARE(op, intrinsic)                      \
+  RT_LANE_INLINE M4 operator op(const D4& a, const D4& b) { \
+    return {intrinsic(a.lo, b.lo), intrinsic(a.hi, b.hi)};  \
   }
 RT_LANE_COMPARE(<, _mm_cmplt_pd)  // ordered: false where either is NaN, as in scalar code
 RT_LANE_COMPARE(>, _mm_cmpgt_pd)
 RT_LANE_COMPARE(>=, _mm_cmpge_pd)
 #undef RT_LANE_COMPARE
 
-RT_LANE_INLINE M4 operator&(const M4& a, const M4& b) { return {_mm_and_pd(a.lo, b.lo), _mm_and_pd(a.hi, b.hi)}; }
-RT_LANE_INLINE M4 operator|(const M4& a, const M4& b) { return {_mm_or_pd(a.lo, b.lo), _mm_or_pd(a.hi, b.hi)}; }
+RT_LANE_INLINE M4 operator&(const M4& a, const M4& b) {
+  return {_mm_and_pd(a.lo, b.lo), _mm_and_pd(a.hi, b.hi)};
+}
+RT_LANE_INLINE M4 operator|(const M4& a, const M4& b) {
+  return {_mm_or_pd(a.lo, b.lo), _mm_or_pd(a.hi, b.hi)};
+}
 RT_LANE_INLINE M4 operator~(const M4& a) {
   const __m128d ones = _mm_castsi128_pd(_mm_set1_epi32(-1));
   return {_mm_xor_pd(a.lo, ones), _mm_xor_pd(a.hi, ones)};
@@ -141,11 +198,17 @@ RT_LANE_INLINE D4 abs(const D4& v) {
 }
 
 // std::sqrt per lane: sqrtpd is correctly rounded like sqrtsd.
-RT_LANE_INLINE D4 sqrt(const D4& v) { return {_mm_sqrt_pd(v.lo), _mm_sqrt_pd(v.hi)}; }
+RT_LANE_INLINE D4 sqrt(const D4& v) {
+  return {_mm_sqrt_pd(v.lo), _mm_sqrt_pd(v.hi)};
+}
 
 // static_cast<float> and back to double, per lane (round to nearest, as the scalar conversions).
-RT_LANE_INLINE F4 to_float(const D4& v) { return _mm_movelh_ps(_mm_cvtpd_ps(v.lo), _mm_cvtpd_ps(v.hi)); }
-RT_LANE_INLINE D4 to_double(const F4& v) { return {_mm_cvtps_pd(v), _mm_cvtps_pd(_mm_movehl_ps(v, v))}; }
+RT_LANE_INLINE F4 to_float(const D4& v) {
+  return _mm_movelh_ps(_mm_cvtpd_ps(v.lo), _mm_cvtpd_ps(v.hi));
+}
+RT_LANE_INLINE D4 to_double(const F4& v) {
+  return {_mm_cvtps_pd(v), _mm_cvtps_pd(_mm_movehl_ps(v, v))};
+}
 
 // A 64-bit-lane mask narrowed to the four float lanes (the low half of each 64-bit lane).
 RT_LANE_INLINE __m128i narrow(const M4& m) {
@@ -158,10 +221,14 @@ RT_LANE_INLINE __m128i narrow(const M4& m) {
 // Built on either implementation.
 
 // std::max(a, b) = (a < b) ? b : a, NaN operands included (maxpd differs there).
-RT_LANE_INLINE D4 max(const D4& a, const D4& b) { return select(a < b, b, a); }
+RT_LANE_INLINE D4 max(const D4& a, const D4& b) {
+  return select(a < b, b, a);
+}
 
 // std::clamp(v, lo, hi) = v < lo ? lo : hi < v ? hi : v.
-RT_LANE_INLINE D4 clamp(const D4& v, const D4& lo, const D4& hi) { return select(v < lo, lo, select(hi < v, hi, v)); }
+RT_LANE_INLINE D4 clamp(const D4& v, const D4& lo, const D4& hi) {
+  return select(v < lo, lo, select(hi < v, hi, v));
+}
 
 // ray_offset_detail::round_away per lane: p rounded to float32 and, where rounding moved it against
 // `away`, one float further along `away`. next_float's step on the bits: +1 moves a positive float
@@ -176,7 +243,8 @@ RT_LANE_INLINE F4 round_away(const D4& p, const D4& away) {
   const __m128i bits = _mm_castps_si128(f);
   const __m128i negative = _mm_srai_epi32(bits, 31);  // all ones where the sign bit is set
   // -1 where negative == up, else +1.
-  const __m128i step = _mm_or_si128(_mm_xor_si128(_mm_xor_si128(negative, up), _mm_set1_epi32(-1)), _mm_set1_epi32(1));
+  const __m128i step =
+      _mm_or_si128(_mm_xor_si128(_mm_xor_si128(negative, up), _mm_set1_epi32(-1)), _mm_set1_epi32(1));
   return _mm_castsi128_ps(_mm_add_epi32(bits, _mm_and_si128(_mm_or_si128(up, down), step)));
 }
 
