@@ -42,7 +42,7 @@ struct Vec3fLanes {
 // shade_hit, as before.
 class BatchShader {
  public:
-  static constexpr int kLanes = 16;  // render_image's 4 x 4 blocks
+  static constexpr int kLanes = 16;  // a camera packet of render_image (4 x 4 pixels)
 
   // The shading arithmetic of up to kLanes hits; one per render thread, reused.
   struct Lanes {

@@ -53,6 +53,49 @@ class ScopedFlushDenormals {
 constexpr int kTimingStride = 8;
 bool is_timing_sample(int x, int y) { return (x + 3 * y) % kTimingStride == 0; }
 
+// A block's recorded shadow rays (PendingShading::shadow_rays, world space) traced as packets,
+// light slot by light slot so that a packet goes towards one light (a single light: in recorded
+// order). The buffers are reused from block to block.
+class BlockShadows {
+ public:
+  std::vector<std::uint8_t> blocked;  // per recorded shadow ray: 1 when occluded
+
+  // Traces them all; returns the timestamp ticks the queries took when `timed`, else 0.
+  std::uint64_t trace(const Accel& accel, const PendingShading& pending, std::size_t slot_count, bool timed) {
+    const std::size_t count = pending.shadow_rays.size();
+    blocked.assign(count, 0);
+    if (count == 0) return 0;
+    if (slot_count == 1) {
+      const std::uint64_t start = timed ? __rdtsc() : 0;
+      accel.occluded_coherent(pending.shadow_rays, blocked);
+      return timed ? __rdtsc() - start : 0;
+    }
+    by_light_.clear();
+    for (std::size_t light = 0; light < slot_count; ++light)
+      for (std::size_t i = 0; i < count; ++i)
+        if (pending.shadow_lights[i] == light) by_light_.push_back(static_cast<std::uint32_t>(i));
+    grouped_rays_.resize(count);
+    grouped_blocked_.resize(count);
+    for (std::size_t i = 0; i < count; ++i) grouped_rays_[i] = pending.shadow_rays[by_light_[i]];
+    const std::uint64_t start = timed ? __rdtsc() : 0;
+    for (std::size_t first = 0; first < count;) {
+      std::size_t last = first + 1;
+      while (last < count && pending.shadow_lights[by_light_[last]] == pending.shadow_lights[by_light_[first]]) ++last;
+      accel.occluded_coherent(std::span(grouped_rays_).subspan(first, last - first),
+                              std::span(grouped_blocked_).subspan(first, last - first));
+      first = last;
+    }
+    const std::uint64_t ticks = timed ? __rdtsc() - start : 0;
+    for (std::size_t i = 0; i < count; ++i) blocked[by_light_[i]] = grouped_blocked_[i];
+    return ticks;
+  }
+
+ private:
+  std::vector<std::uint32_t> by_light_;  // shadow ray indices, grouped by light slot
+  std::vector<Ray> grouped_rays_;
+  std::vector<std::uint8_t> grouped_blocked_;
+};
+
 // Copies a w x h tile (`colors`, `pitch` pixels a row) to image pixels from (x, y) with
 // non-temporal stores: the image is not read again while rendering, so its 12 bytes a pixel need
 // not pass through the caches (and evict the scene's data) on the way to memory. Fenced, so that
@@ -140,9 +183,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
     RayCounts counts;
     // Buffers of the camera blocks, reused from block to block.
     PendingShading pending;
-    std::vector<std::uint8_t> blocked, grouped_blocked;
-    std::vector<std::uint32_t> by_light;
-    std::vector<Ray> grouped_rays;
+    BlockShadows shadows;
     BatchShader::Workspace batch;
     // A block's rays, hits, per-pixel sums and timing ticks: kept here, not built (and zeroed)
     // per block.
@@ -170,9 +211,9 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
     return Color(0.0f);
   };
 
-  // Camera rays are traced kBlock x kBlock pixels at a time, one packet per sample index (Embree:
-  // one 16-ray packet); their shadow rays are recorded, traced together light by light, and each
-  // pixel's terms then summed as shade_hit sums them (PendingShading). When timed, a timed pixel is
+  // A block's camera rays are traced a kPacket x kPacket packet at a time, per sample index
+  // (Embree: one 16-ray packet); their shadow rays are recorded, traced together light by light,
+  // and each pixel's terms then summed as shade_hit sums them (PendingShading). When timed, a timed pixel is
   // charged an equal share of its packets' ticks, so the shares stay fractions of the timed
   // pixels' loop ticks.
   // Light slots: the scene's lights, then the emitters (RayCounts::add_shadow_query).
@@ -257,33 +298,10 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
       }
       if (batching) batch.trace_reflections(state.batch, counts, pending);
 
-      // Shadow rays light by light, so that a packet goes towards one light (a single light: as recorded).
+      const std::uint64_t shadow_ticks = state.shadows.trace(accel, pending, slot_count, options.time_queries);
       const std::size_t shadow_count = pending.shadow_rays.size();
-      state.blocked.assign(shadow_count, 0);
-      if (shadow_count > 0 && slot_count == 1) {
-        start = options.time_queries ? __rdtsc() : 0;
-        accel.occluded_coherent(pending.shadow_rays, state.blocked);
-      } else if (shadow_count > 0) {
-        state.by_light.clear();
-        for (std::size_t light = 0; light < slot_count; ++light)
-          for (std::size_t i = 0; i < shadow_count; ++i)
-            if (pending.shadow_lights[i] == light) state.by_light.push_back(static_cast<std::uint32_t>(i));
-        state.grouped_rays.resize(shadow_count);
-        state.grouped_blocked.resize(shadow_count);
-        for (std::size_t i = 0; i < shadow_count; ++i) state.grouped_rays[i] = pending.shadow_rays[state.by_light[i]];
-        start = options.time_queries ? __rdtsc() : 0;
-        for (std::size_t first = 0; first < shadow_count;) {
-          std::size_t last = first + 1;
-          while (last < shadow_count && pending.shadow_lights[state.by_light[last]] == pending.shadow_lights[state.by_light[first]])
-            ++last;
-          accel.occluded_coherent(std::span(state.grouped_rays).subspan(first, last - first),
-                                  std::span(state.grouped_blocked).subspan(first, last - first));
-          first = last;
-        }
-        for (std::size_t i = 0; i < shadow_count; ++i) state.blocked[state.by_light[i]] = state.grouped_blocked[i];
-      }
       if (shadow_count > 0 && options.time_queries) {
-        const std::uint64_t share = (__rdtsc() - start) / std::uint64_t(shadow_count);
+        const std::uint64_t share = shadow_ticks / std::uint64_t(shadow_count);
         for (int k = 0; k < n; ++k) {
           if (!timed[k]) continue;
           const PendingShading::Pixel& p = pending.pixels[std::size_t(pixel_of[k])];
@@ -300,7 +318,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
         if (timed[k]) start = __rdtsc();
         const std::uint64_t pixel = std::uint64_t(ys[k]) * std::uint64_t(width) + std::uint64_t(xs[k]);
         const Color c = guarded(pixel_of[k] < 0 ? batch.background()
-                                                : finish_camera_hit(pending, std::size_t(pixel_of[k]), state.blocked),
+                                                : finish_camera_hit(pending, std::size_t(pixel_of[k]), state.shadows.blocked),
                                 state, pixel);
         if (spp == 1 || one_sample)
           state.tile_colors[std::size_t((ys[k] - state.tile_y0) * tile + xs[k] - state.tile_x0)] = c;
