@@ -213,9 +213,9 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
 
   // A block's camera rays are traced a kPacket x kPacket packet at a time, per sample index
   // (Embree: one 16-ray packet); their shadow rays are recorded, traced together light by light,
-  // and each pixel's terms then summed as shade_hit sums them (PendingShading). When timed, a timed pixel is
-  // charged an equal share of its packets' ticks, so the shares stay fractions of the timed
-  // pixels' loop ticks.
+  // and each pixel's terms then summed as shade_hit sums them (PendingShading). When timed, a
+  // timed pixel is charged an equal share of its packets' ticks, so the shares stay fractions of
+  // the timed pixels' loop ticks.
   // Light slots: the scene's lights, then the emitters (RayCounts::add_shadow_query).
   const std::size_t light_count = scene.lights.size();
   const std::size_t slot_count = light_count + result.plan.emitters.size();
