@@ -40,6 +40,14 @@ struct Xyz {
   lm::store(to.z.v + g, z);
 }
 
+// w0 v0 + w1 v1 + w2 v2, component by component, in that order (make_surface_point's and the
+// shading normal's interpolation).
+[[gnu::always_inline]] static inline Xyz interpolate(const D4& w0, const D4& w1, const D4& w2, const Xyz& v0,
+                                                     const Xyz& v1, const Xyz& v2) {
+  return {w0 * v0.x + w1 * v1.x + w2 * v2.x, w0 * v0.y + w1 * v1.y + w2 * v2.y,
+          w0 * v0.z + w1 * v1.z + w2 * v2.z};
+}
+
 // offset_ray_origin for lanes g..g+3 along directions whose dot product with the geometric normal
 // is `cosine`: off the surface along the normal, to the side the ray goes.
 [[gnu::always_inline]] static inline void set_origins(const Lanes& block, int g, const D4& cosine,
@@ -77,9 +85,7 @@ void surfaces(const Gathered& in, const OriginPolicy& policy, Lanes& block) {
     load(p0, in.p0, g);
     load(p1, in.p1, g);
     load(p2, in.p2, g);
-    const D4 px = w0 * p0.x + b1 * p1.x + b2 * p2.x;
-    const D4 py = w0 * p0.y + b1 * p1.y + b2 * p2.y;
-    const D4 pz = w0 * p0.z + b1 * p1.z + b2 * p2.z;
+    const auto [px, py, pz] = interpolate(w0, b1, b2, p0, p1, p2);
     store(block.point, g, px, py, pz);
     const D4 e1x = p1.x - p0.x, e1y = p1.y - p0.y, e1z = p1.z - p0.z;
     const D4 e2x = p2.x - p0.x, e2y = p2.y - p0.y, e2z = p2.z - p0.z;
@@ -105,9 +111,7 @@ void surfaces(const Gathered& in, const OriginPolicy& policy, Lanes& block) {
     load(n1, in.n1, g);
     load(n2, in.n2, g);
     load(d, in.d, g);
-    const D4 nx = w0 * n0.x + b1 * n1.x + b2 * n2.x;
-    const D4 ny = w0 * n0.y + b1 * n1.y + b2 * n2.y;
-    const D4 nz = w0 * n0.z + b1 * n1.z + b2 * n2.z;
+    const auto [nx, ny, nz] = interpolate(w0, b1, b2, n0, n1, n2);
     const D4 n_scale = one / lm::sqrt(nx * nx + ny * ny + nz * nz);
     const D4 d_scale = one / lm::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
     const D4 ux = d.x * d_scale, uy = d.y * d_scale, uz = d.z * d_scale;

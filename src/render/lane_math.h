@@ -37,25 +37,10 @@ RT_LANE_INLINE void load(D4& out, const double* p) {
 RT_LANE_INLINE void store(double* p, const D4& v) {
   _mm256_storeu_pd(p, v.v);
 }
-RT_LANE_INLINE void load(M4& out, const std::int64_t* p) {
-  std::memcpy(&out, p, sizeof out);
-}
-RT_LANE_INLINE void store(std::int64_t* p, const M4& m) {
-  std::memcpy(p, &m, sizeof m);
-}
-RT_LANE_INLINE void load(F4& out, const float* p) {
-  out = _mm_loadu_ps(p);
-}
-RT_LANE_INLINE void store(float* p, const F4& v) {
-  _mm_storeu_ps(p, v);
-}
 
 #define RT_LANE_BINARY(op, intrinsic)                       \
   RT_LANE_INLINE D4 operator op(const D4& a, const D4& b) { \
     return {intrinsic(a.v, b.v)};                           \
-  }                                                         \
-  RT_LANE_INLINE D4& operator op##=(D4& a, const D4& b) {   \
-    return a = a op b;                                      \
   }
 RT_LANE_BINARY(+, _mm256_add_pd)
 RT_LANE_BINARY(-, _mm256_sub_pd)
@@ -133,25 +118,10 @@ RT_LANE_INLINE void store(double* p, const D4& v) {
   _mm_storeu_pd(p, v.lo);
   _mm_storeu_pd(p + 2, v.hi);
 }
-RT_LANE_INLINE void load(M4& out, const std::int64_t* p) {
-  std::memcpy(&out, p, sizeof out);
-}
-RT_LANE_INLINE void store(std::int64_t* p, const M4& m) {
-  std::memcpy(p, &m, sizeof m);
-}
-RT_LANE_INLINE void load(F4& out, const float* p) {
-  out = _mm_loadu_ps(p);
-}
-RT_LANE_INLINE void store(float* p, const F4& v) {
-  _mm_storeu_ps(p, v);
-}
 
 #define RT_LANE_BINARY(op, intrinsic)                       \
   RT_LANE_INLINE D4 operator op(const D4& a, const D4& b) { \
     return {intrinsic(a.lo, b.lo), intrinsic(a.hi, b.hi)};  \
-  }                                                         \
-  RT_LANE_INLINE D4& operator op##=(D4& a, const D4& b) {   \
-    return a = a op b;                                      \
   }
 RT_LANE_BINARY(+, _mm_add_pd)
 RT_LANE_BINARY(-, _mm_sub_pd)
@@ -219,6 +189,32 @@ RT_LANE_INLINE __m128i narrow(const M4& m) {
 #endif
 
 // Built on either implementation.
+
+RT_LANE_INLINE void load(M4& out, const std::int64_t* p) {
+  std::memcpy(&out, p, sizeof out);
+}
+RT_LANE_INLINE void store(std::int64_t* p, const M4& m) {
+  std::memcpy(p, &m, sizeof m);
+}
+RT_LANE_INLINE void load(F4& out, const float* p) {
+  out = _mm_loadu_ps(p);
+}
+RT_LANE_INLINE void store(float* p, const F4& v) {
+  _mm_storeu_ps(p, v);
+}
+
+RT_LANE_INLINE D4& operator+=(D4& a, const D4& b) {
+  return a = a + b;
+}
+RT_LANE_INLINE D4& operator-=(D4& a, const D4& b) {
+  return a = a - b;
+}
+RT_LANE_INLINE D4& operator*=(D4& a, const D4& b) {
+  return a = a * b;
+}
+RT_LANE_INLINE D4& operator/=(D4& a, const D4& b) {
+  return a = a / b;
+}
 
 // std::max(a, b) = (a < b) ? b : a, NaN operands included (maxpd differs there).
 RT_LANE_INLINE D4 max(const D4& a, const D4& b) {
