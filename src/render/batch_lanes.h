@@ -22,20 +22,6 @@ struct Gathered {
   alignas(32) std::int64_t flip[kLanes];  // all ones: BackFace::flipped, else 0
 };
 
-// RayOffset, as the lanes read it.
-struct OriginPolicy {
-  bool fixed = false;    // RayOffset::Mode::fixed
-  double epsilon = 0.0;  // its distance, world units
-};
-
-// What Kernels::light reads of one light (world space, double).
-struct LightLanes {
-  bool directional = false, spot = false;
-  double position[3], to_light[3], color[3], attenuation[3], spot_direction[3];
-  double spot_cos_outer = 0.0, cone_width = 0.0;
-  double extent = 0.0;  // the largest coordinate magnitude of the position (robust_shadow_tfar)
-};
-
 // One build of the arithmetic. surfaces: make_surface_point, the shading normal (interpolated,
 // unit, flipped towards the viewer on a two-sided back face), the unit direction and the
 // reflection ray of block.count lanes. light: one light's direction, unshadowed intensity, n.l,

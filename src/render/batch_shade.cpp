@@ -19,7 +19,6 @@ namespace {
 
 using batch_lanes::Gathered;
 using batch_lanes::LightLanes;
-using batch_lanes::OriginPolicy;
 
 void count_at(std::vector<std::uint64_t>& counts, std::size_t index) {
   if (counts.size() <= index) counts.resize(index + 1, 0);
@@ -36,10 +35,30 @@ Vec3d lane(const V& v, int i) {
 }  // namespace
 
 BatchShader::BatchShader(const ShadingContext& context)
-    : context_(context), background_(context.scene.settings.background) {
+    : context_(context),
+      kernels_(batch_lanes::best_kernels()),
+      origin_policy_{context.ray_offset.mode == RayOffset::Mode::fixed, context.ray_offset.epsilon},
+      background_(context.scene.settings.background) {
   const Scene& scene = context.scene;
   const EffectsPlan& plan = context.plan;
   if (plan.area_lights || context.trace) return;
+  for (std::size_t j = 0; j < scene.lights.size(); ++j) {
+    const Light& light = scene.lights[j];
+    const LightPlan& light_plan = plan.lights[j];
+    LightLanes& lanes = lights_.emplace_back();
+    lanes.directional = light.is_directional();
+    lanes.spot = light.is_spot();
+    const Vec3d position(light.position);
+    const auto put = [](double (&to)[3], const Vec3d& from) { to[0] = from.x, to[1] = from.y, to[2] = from.z; };
+    put(lanes.position, position);
+    put(lanes.to_light, light_plan.to_light);
+    put(lanes.color, light_plan.color);
+    put(lanes.attenuation, light.attenuation);
+    put(lanes.spot_direction, light.spot_direction);
+    lanes.spot_cos_outer = light.spot_cos_outer;
+    lanes.cone_width = std::max(light.spot_cos_inner - light.spot_cos_outer, 1e-3);
+    lanes.extent = std::max({std::abs(position.x), std::abs(position.y), std::abs(position.z)});
+  }
   materials_.resize(scene.materials.size());
   for (std::size_t m = 0; m < scene.materials.size(); ++m) {
     const Material& material = scene.materials[m];
@@ -105,10 +124,6 @@ void BatchShader::start_block(Workspace& work) const {
   work.waves[1].clear();
 }
 
-batch_lanes::OriginPolicy BatchShader::origin_policy() const {
-  return {context_.ray_offset.mode == RayOffset::Mode::fixed, context_.ray_offset.epsilon};
-}
-
 void BatchShader::compute_surfaces(Lanes& block, const std::array<Ray, kLanes>& rays,
                                    const std::array<Hit, kLanes>& hits, int depth) const {
   const FlatScene& flat = context_.flat;
@@ -172,34 +187,19 @@ void BatchShader::compute_surfaces(Lanes& block, const std::array<Ray, kLanes>& 
     block.shininess.v[i] = block.shininess.v[0];
     block.highlight[i] = block.highlight[0];
   }
-  batch_lanes::best_kernels().surfaces(in, origin_policy(), block);
+  kernels_.surfaces(in, origin_policy_, block);
 }
 
 void BatchShader::compute_light(Lanes& block, std::size_t j) const {
-  const Light& light = context_.scene.lights[j];
-  const LightPlan& plan = context_.plan.lights[j];
-  LightLanes params;
-  params.directional = light.is_directional();
-  params.spot = light.is_spot();
-  const Vec3d position(light.position);
-  const auto put = [](double (&to)[3], const Vec3d& from) { to[0] = from.x, to[1] = from.y, to[2] = from.z; };
-  put(params.position, position);
-  put(params.to_light, plan.to_light);
-  put(params.color, plan.color);
-  put(params.attenuation, light.attenuation);
-  put(params.spot_direction, light.spot_direction);
-  params.spot_cos_outer = light.spot_cos_outer;
-  params.cone_width = std::max(light.spot_cos_inner - light.spot_cos_outer, 1e-3);
-  params.extent = std::max({std::abs(position.x), std::abs(position.y), std::abs(position.z)});
   Lanes::Light& out = block.lights[j];
   LaneArray<kLanes> n_dot_h, n_dot_l, power;
   Vec3Lanes<kLanes> intensity;
-  batch_lanes::best_kernels().light(params, origin_policy(), block, out, intensity, n_dot_l, n_dot_h);
+  kernels_.light(lights_[j], origin_policy_, block, out, intensity, n_dot_l, n_dot_h);
   // pow stays libm's scalar call, lane by lane.
   for (int i = 0; i < block.count; ++i)
     power.v[i] = block.highlight[i] != 0 ? std::pow(n_dot_h.v[i], block.shininess.v[i]) : 0.0;
   for (int i = block.count; i % 4 != 0; ++i) power.v[i] = 0.0;
-  batch_lanes::best_kernels().terms(block, intensity, n_dot_l, power, out);
+  kernels_.terms(block, intensity, n_dot_l, power, out);
 }
 
 namespace {

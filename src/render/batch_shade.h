@@ -15,9 +15,25 @@
 
 namespace rt {
 
-namespace batch_lanes {
-struct OriginPolicy;
-}
+namespace batch_lanes {  // what the lane arithmetic (batch_lanes.h) reads of the scene
+
+// RayOffset, as the lanes read it.
+struct OriginPolicy {
+  bool fixed = false;    // RayOffset::Mode::fixed
+  double epsilon = 0.0;  // its distance, world units
+};
+
+// What Kernels::light reads of one light (world space, double), set once per render.
+struct LightLanes {
+  bool directional = false, spot = false;
+  double position[3], to_light[3], color[3], attenuation[3], spot_direction[3];
+  double spot_cos_outer = 0.0, cone_width = 0.0;
+  double extent = 0.0;  // the largest coordinate magnitude of the position (robust_shadow_tfar)
+};
+
+struct Kernels;
+
+}  // namespace batch_lanes
 
 // kLanes doubles, one per hit of a batch.
 template <int kLanes>
@@ -128,7 +144,6 @@ class BatchShader {
     Vec3d ambient{0.0}, diffuse{0.0}, specular{0.0}, reflective{0.0}, emission{0.0};
   };
   bool batchable(const Hit& hit) const;
-  batch_lanes::OriginPolicy origin_policy() const;
   // A cache hint for the triangle indices and materials that compute_surfaces gathers for `hits`.
   void prefetch_triangles(std::span<const Hit> hits) const;
   // The arithmetic of lanes.count hits at ray depth `depth` (rays[i], hits[i] batchable).
@@ -146,6 +161,9 @@ class BatchShader {
   void shade_wave(Workspace& work, int depth, RayCounts& counts) const;
 
   const ShadingContext& context_;
+  const batch_lanes::Kernels& kernels_;  // the AVX2 or the baseline build
+  batch_lanes::OriginPolicy origin_policy_;
+  std::vector<batch_lanes::LightLanes> lights_;  // parallel to Scene::lights
   bool enabled_ = false;
   Vec3d background_;  // Settings::background
   std::vector<PlainMaterial> materials_;
