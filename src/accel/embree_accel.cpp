@@ -212,6 +212,7 @@ struct UserGeometryData {
   const std::uint32_t* triangles = nullptr;  // FlatScene index of each primitive; null: the same index
   const SurfaceTest* test = nullptr;         // set on the geometry of the tested triangles only
   const TriangleCluster* clusters = nullptr;  // the watertight kernel's primitives, when it runs
+  IntersectCluster intersect_cluster = nullptr;  // and its build for this CPU
 };
 
 // An occlusion query's context: Embree's, and each ray's set-up for the watertight kernel, by id.
@@ -408,7 +409,7 @@ void cluster_intersect(const RTCIntersectFunctionNArguments* args) {
     if (args->valid[i] == 0) continue;
     float& tfar = RTCRayN_tfar(ray, args->N, i);
     ClusterHits hits;
-    unsigned found = intersect_cluster(context->sheared[RTCRayN_id(ray, args->N, i)], cluster,
+    unsigned found = data->intersect_cluster(context->sheared[RTCRayN_id(ray, args->N, i)], cluster,
                                        RTCRayN_tnear(ray, args->N, i), tfar, hits);
     if (found == 0) continue;
     BestHit& best = context->of(ray, args->N, i);
@@ -438,7 +439,7 @@ void cluster_occluded(const RTCOccludedFunctionNArguments* args) {
     if (args->valid[i] == 0) continue;
     float& tfar = RTCRayN_tfar(args->ray, args->N, i);
     ClusterHits hits;
-    unsigned found = intersect_cluster(sheared[RTCRayN_id(args->ray, args->N, i)], cluster,
+    unsigned found = data->intersect_cluster(sheared[RTCRayN_id(args->ray, args->N, i)], cluster,
                                        RTCRayN_tnear(args->ray, args->N, i), tfar, hits);
     for (; found != 0; found &= found - 1) {
       const unsigned l = unsigned(__builtin_ctz(found));
@@ -696,6 +697,7 @@ EmbreeAccel::EmbreeAccel(const FlatScene& flat, const AccelOptions& options) : i
       clusters = build_clusters(device, flat, triangles.size(), data.triangles);
       if (clusters.empty()) return;
       data.clusters = clusters.data();
+      data.intersect_cluster = best_intersect_cluster();
       impl_->shear = true;
       geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
       rtcSetGeometryUserPrimitiveCount(geometry, static_cast<unsigned>(clusters.size()));

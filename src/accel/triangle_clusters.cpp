@@ -1,32 +1,66 @@
+// Built twice: as itself (baseline x86-64, SSE2) and included by triangle_clusters_avx2.cpp with
+// RT_TRIANGLE_CLUSTERS_AVX2 and -mavx2 (src/CMakeLists.txt). The kernel's helpers have internal
+// linkage, so the AVX2 build defines no function another object could link in place of its own.
+
 #include "triangle_clusters.h"
+
+#include <immintrin.h>
 
 #include <cmath>
 #include <cstring>
 
 namespace rt {
 
+namespace cluster_kernel {
+#ifdef RT_TRIANGLE_CLUSTERS_AVX2
+namespace avx2 {
+#else
+namespace baseline {
+#endif
+
 namespace {
 
-// Eight float32 lanes (GCC/Clang vector extension: one AVX register, or two SSE ones). Helpers take
-// and return them by reference only: a 32-byte vector passed by value changes the ABI between the
-// AVX2 and baseline clones, which Clang rejects outright.
+// Eight float32 lanes (GCC/Clang vector extension: one AVX register, or two SSE ones).
 using Lanes = float __attribute__((vector_size(32)));
 using Mask = int __attribute__((vector_size(32)));
 
-[[gnu::always_inline]] inline void load(Lanes& out, const float (&p)[kClusterWidth]) {
-  static_assert(sizeof out == sizeof p);
-  std::memcpy(&out, p, sizeof out);
+// x in every lane, its sign of zero kept (x - +0 is x for every x; Lanes{} + x would turn -0 into +0,
+// unlike the scalar arithmetic of shear_lane). Vectors go by reference only: returned by value, a
+// 32-byte vector has a different ABI in the baseline build (-Wpsabi).
+[[gnu::always_inline]] inline void broadcast(Lanes& out, float x) { out = x - Lanes{}; }
+
+[[gnu::always_inline]] inline void load(Lanes& out, const float* p) { std::memcpy(&out, p, sizeof out); }
+
+[[gnu::always_inline]] inline void store(float (&p)[kClusterWidth], const Lanes& in) {
+  static_assert(sizeof p == sizeof in);
+  std::memcpy(p, &in, sizeof in);
 }
 
+// Bit l set where lane l of `m` (all ones or zero, as comparisons give) is set: the sign bits, one
+// movmskps (two without AVX). Through a copy: GCC 12 at -O1 under ASan miscompiled subscripts of a
+// vector bound to a reference.
 [[gnu::always_inline]] inline unsigned bits(const Mask& m) {
-  // Through a copy: GCC 12 at -O1 under ASan miscompiled subscripts of a vector bound to a
-  // reference (-Wmaybe-uninitialized on the lane index, and the sanitizer build lost hits).
-  int lanes[kClusterWidth];
-  static_assert(sizeof lanes == sizeof m);
-  std::memcpy(lanes, &m, sizeof lanes);
-  unsigned out = 0;
-  for (unsigned l = 0; l < kClusterWidth; ++l) out |= (lanes[l] != 0 ? 1u : 0u) << l;
-  return out;
+#ifdef RT_TRIANGLE_CLUSTERS_AVX2
+  __m256 v;
+  std::memcpy(&v, &m, sizeof v);
+  return unsigned(_mm256_movemask_ps(v));
+#else
+  __m128 v[2];
+  static_assert(sizeof v == sizeof m);
+  std::memcpy(v, &m, sizeof v);
+  return unsigned(_mm_movemask_ps(v[0])) | (unsigned(_mm_movemask_ps(v[1])) << 4);
+#endif
+}
+
+// Lane l of `cluster` sheared as intersect_cluster's vectors do it, with the same float32
+// operations in the same order: q[k] = (x, y, z) of vertex k, z already scaled by sz.
+void shear_lane(const ShearedRay& ray, const TriangleCluster& cluster, unsigned l, float (&q)[3][3]) {
+  for (int k = 0; k < 3; ++k) {
+    const float z = cluster.v[k][ray.kz][l] - ray.oz;
+    q[k][0] = (cluster.v[k][ray.kx][l] - ray.ox) + ray.sx * z;
+    q[k][1] = (cluster.v[k][ray.ky][l] - ray.oy) + ray.sy * z;
+    q[k][2] = ray.sz * z;
+  }
 }
 
 // One lane again, in double from the same float32 sheared coordinates (x, y, and z already scaled
@@ -49,7 +83,81 @@ bool intersect_lane_exactly(const float (&q)[3][3], float tnear, float tfar, flo
   return true;
 }
 
+// Step 3's exact recomputation, for the lanes of `lanes` (where some edge function rounded to
+// zero): `found` with the bits of those that are hit added. Each lane is sheared again in scalar float32 rather than
+// read back from intersect_cluster's vectors, which would keep them on the stack in every call;
+// out of line and a tail call, so that the common path needs no stack frame for it.
+[[gnu::noinline]] unsigned intersect_lanes_exactly(const ShearedRay& ray, const TriangleCluster& cluster,
+                                                   unsigned lanes, float tnear, float tfar, ClusterHits& hits,
+                                                   unsigned found) {
+  for (; lanes != 0; lanes &= lanes - 1) {
+    const unsigned l = unsigned(__builtin_ctz(lanes));
+    float q[3][3];
+    shear_lane(ray, cluster, l, q);
+    if (intersect_lane_exactly(q, tnear, tfar, hits.t[l], hits.b1[l], hits.b2[l])) found |= 1u << l;
+  }
+  return found;
+}
+
 }  // namespace
+
+unsigned intersect_cluster(const ShearedRay& ray, const TriangleCluster& cluster, float tnear, float tfar,
+                           ClusterHits& hits) {
+  if (!ray.valid) return 0;
+  Lanes ox, oy, oz, sx, sy, sz;
+  broadcast(ox, ray.ox);
+  broadcast(oy, ray.oy);
+  broadcast(oz, ray.oz);
+  broadcast(sx, ray.sx);
+  broadcast(sy, ray.sy);
+  broadcast(sz, ray.sz);
+  // Step 1 and 2 of the reference: vertex minus origin (float32, once per vertex), permuted, sheared.
+  Lanes qx[3], qy[3], qz[3];
+  for (int k = 0; k < 3; ++k) {
+    Lanes vx, vy, vz;
+    load(vx, cluster.v[k][ray.kx]);
+    load(vy, cluster.v[k][ray.ky]);
+    load(vz, cluster.v[k][ray.kz]);
+    const Lanes z = vz - oz;
+    qx[k] = (vx - ox) + sx * z;
+    qy[k] = (vy - oy) + sy * z;
+    qz[k] = sz * z;
+  }
+  // Step 3: edge functions, each from its edge's two vertices only.
+  const Lanes e0 = qx[1] * qy[2] - qy[1] * qx[2];
+  const Lanes e1 = qx[2] * qy[0] - qy[2] * qx[0];
+  const Lanes e2 = qx[0] * qy[1] - qy[0] * qx[1];
+  const Lanes zero{};
+  const Mask negative = (e0 < zero) | (e1 < zero) | (e2 < zero);
+  const Mask positive = (e0 > zero) | (e1 > zero) | (e2 > zero);
+  const Mask rounded_to_zero = (e0 == zero) | (e1 == zero) | (e2 == zero);
+  const unsigned in_use = (1u << cluster.count) - 1u;
+  const unsigned inside = bits(~(negative & positive) & ~rounded_to_zero) & in_use;
+  const unsigned exact = bits(rounded_to_zero) & in_use;
+  if ((inside | exact) == 0) return 0;  // most clusters a ray reaches: no division needed
+  unsigned found = 0;
+  if (inside != 0) {
+    // Steps 4 and 5: t and the barycentrics, for the lanes whose edge functions agree.
+    const Lanes det = e0 + e1 + e2;
+    const Lanes inv_det = (Lanes{} + 1.0f) / det;
+    const Lanes t = (e0 * qz[0] + e1 * qz[1] + e2 * qz[2]) * inv_det;
+    // det finite and non-zero, and not so small that 1 / det overflows (x - x is NaN for inf and NaN).
+    const Mask finite = ((det - det) == zero) & ((inv_det - inv_det) == zero);
+    const Mask accepted = (det != zero) & finite & (t >= (Lanes{} + tnear)) & (t <= (Lanes{} + tfar));
+    found = inside & bits(accepted);
+    // Every lane is written; the caller reads the found ones, and the exact ones below are not
+    // among `inside`.
+    store(hits.t, t);
+    store(hits.b1, e1 * inv_det);
+    store(hits.b2, e2 * inv_det);
+  }
+  return exact != 0 ? intersect_lanes_exactly(ray, cluster, exact, tnear, tfar, hits, found) : found;
+}
+
+}  // namespace (baseline or avx2)
+}  // namespace cluster_kernel
+
+#ifndef RT_TRIANGLE_CLUSTERS_AVX2
 
 TriangleCluster make_cluster(const FlatScene& flat, const std::uint32_t* triangles, unsigned count) {
   TriangleCluster cluster;
@@ -78,11 +186,13 @@ bool is_degenerate(const FlatScene& flat, std::uint32_t triangle) {
 
 ShearedRay shear_ray(const Vec3f& origin, const Vec3f& direction) {
   ShearedRay ray;
-  ray.origin = origin;
   const Vec3f a = glm::abs(direction);
   ray.kz = a.x > a.y ? (a.x > a.z ? 0 : 2) : (a.y > a.z ? 1 : 2);
   ray.kx = (ray.kz + 1) % 3;
   ray.ky = (ray.kx + 1) % 3;
+  ray.ox = origin[ray.kx];
+  ray.oy = origin[ray.ky];
+  ray.oz = origin[ray.kz];
   const float dz = direction[ray.kz];
   ray.valid = dz != 0.0f && std::isfinite(dz) && std::isfinite(direction[ray.kx]) && std::isfinite(direction[ray.ky]);
   if (!ray.valid) return ray;
@@ -93,67 +203,17 @@ ShearedRay shear_ray(const Vec3f& origin, const Vec3f& direction) {
   return ray;
 }
 
-// Two builds, AVX2 and baseline x86-64, chosen once by the loader (an ifunc). Both compute every
-// lane with the same operations in the same order, without contraction (CMakeLists), so a vertex
-// shared by two triangles is sheared to the same coordinates whichever lane or cluster holds it.
-[[gnu::target_clones("avx2", "default")]]
-unsigned intersect_cluster(const ShearedRay& ray, const TriangleCluster& cluster, float tnear, float tfar,
-                           ClusterHits& hits) {
-  if (!ray.valid) return 0;
-  const int kx = ray.kx, ky = ray.ky, kz = ray.kz;
-  // Lanes{} + x broadcasts x to every lane.
-  const Lanes ox = Lanes{} + ray.origin[kx], oy = Lanes{} + ray.origin[ky], oz = Lanes{} + ray.origin[kz];
-  const Lanes sx = Lanes{} + ray.sx, sy = Lanes{} + ray.sy, sz = Lanes{} + ray.sz;
-  // Step 1 and 2 of the reference: vertex minus origin (float32, once per vertex), permuted, sheared.
-  Lanes qx[3], qy[3], qz[3];
-  for (int k = 0; k < 3; ++k) {
-    Lanes vx, vy, vz;
-    load(vx, cluster.v[k][kx]);
-    load(vy, cluster.v[k][ky]);
-    load(vz, cluster.v[k][kz]);
-    const Lanes z = vz - oz;
-    qx[k] = (vx - ox) + sx * z;
-    qy[k] = (vy - oy) + sy * z;
-    qz[k] = sz * z;
-  }
-  // Step 3: edge functions, each from its edge's two vertices only.
-  const Lanes e0 = qx[1] * qy[2] - qy[1] * qx[2];
-  const Lanes e1 = qx[2] * qy[0] - qy[2] * qx[0];
-  const Lanes e2 = qx[0] * qy[1] - qy[0] * qx[1];
-  const Lanes zero{};
-  const Mask negative = (e0 < zero) | (e1 < zero) | (e2 < zero);
-  const Mask positive = (e0 > zero) | (e1 > zero) | (e2 > zero);
-  const Mask rounded_to_zero = (e0 == zero) | (e1 == zero) | (e2 == zero);
-  const unsigned in_use = (1u << cluster.count) - 1u;
-  const Mask agree = ~(negative & positive) & ~rounded_to_zero;
-  const unsigned inside = bits(agree) & in_use;
-  const unsigned exact = bits(rounded_to_zero) & in_use;
-  if ((inside | exact) == 0) return 0;  // most clusters a ray reaches: no division needed
-  unsigned found = 0;
-  if (inside != 0) {
-    // Steps 4 and 5: t and the barycentrics, for the lanes whose edge functions agree.
-    const Lanes det = e0 + e1 + e2;
-    const Lanes inv_det = (Lanes{} + 1.0f) / det;
-    const Lanes t = (e0 * qz[0] + e1 * qz[1] + e2 * qz[2]) * inv_det;
-    // det finite and non-zero, and not so small that 1 / det overflows (x - x is NaN for inf and NaN).
-    const Mask finite = ((det - det) == zero) & ((inv_det - inv_det) == zero);
-    const Mask accepted = (det != zero) & finite & (t >= (Lanes{} + tnear)) & (t <= (Lanes{} + tfar));
-    found = inside & bits(accepted);
-    const Lanes b1 = e1 * inv_det, b2 = e2 * inv_det;
-    for (unsigned lanes = found; lanes != 0; lanes &= lanes - 1) {
-      const unsigned l = unsigned(__builtin_ctz(lanes));
-      hits.t[l] = t[l];
-      hits.b1[l] = b1[l];
-      hits.b2[l] = b2[l];
-    }
-  }
-  // Step 3's exact recomputation, for the lanes where some edge function rounded to zero.
-  for (unsigned lanes = exact; lanes != 0; lanes &= lanes - 1) {
-    const unsigned l = unsigned(__builtin_ctz(lanes));
-    const float q[3][3] = {{qx[0][l], qy[0][l], qz[0][l]}, {qx[1][l], qy[1][l], qz[1][l]}, {qx[2][l], qy[2][l], qz[2][l]}};
-    if (intersect_lane_exactly(q, tnear, tfar, hits.t[l], hits.b1[l], hits.b2[l])) found |= 1u << l;
-  }
-  return found;
+IntersectCluster avx2_intersect_cluster() {
+  __builtin_cpu_init();  // idempotent; needed when called before the constructors have run
+  return __builtin_cpu_supports("avx2") ? &cluster_kernel::avx2::intersect_cluster : nullptr;
 }
+
+IntersectCluster best_intersect_cluster() {
+  static const IntersectCluster best =
+      avx2_intersect_cluster() ? avx2_intersect_cluster() : &cluster_kernel::baseline::intersect_cluster;
+  return best;
+}
+
+#endif
 
 }  // namespace rt

@@ -33,11 +33,12 @@ TriangleCluster make_cluster(const FlatScene& flat, const std::uint32_t* triangl
 // the clusters, as intersect_triangle_watertight rejects them first.
 bool is_degenerate(const FlatScene& flat, std::uint32_t triangle);
 
-// A ray set up for the test, world space, float32: its origin, the axis permutation that makes the
-// direction's largest component z, and the shear that maps the direction onto +z.
+// A ray set up for the test, world space, float32: the axis permutation that makes the direction's
+// largest component z, the origin's coordinates in that order, and the shear that maps the
+// direction onto +z.
 struct ShearedRay {
-  Vec3f origin{0.0f};
   int kx = 0, ky = 1, kz = 2;
+  float ox = 0.0f, oy = 0.0f, oz = 0.0f;  // origin[kx], origin[ky], origin[kz]
   float sx = 0.0f, sy = 0.0f, sz = 0.0f;
   bool valid = false;  // false for a zero or non-finite direction, which hits nothing
 };
@@ -49,11 +50,32 @@ struct ClusterHits {
 };
 
 // The lanes of `cluster` whose triangle `ray` hits with tnear <= t <= tfar, as a bit mask (bit l:
-// lane l), their hits in `hits`. Watertight: along an edge or through a vertex shared by
-// triangles of one mesh, at least one of them is hit (zeros are on the boundary, so both may be),
-// whatever cluster each is in. An edge function that rounds to zero in float32 is recomputed
-// exactly in double (the products of two floats are exact there), so every sign is exact.
+// lane l), their hits in `hits` (other lanes of `hits` are left undefined). Watertight: along an
+// edge or through a vertex shared by triangles of one mesh, at least one of them is hit (zeros are
+// on the boundary, so both may be), whatever cluster each is in. An edge function that rounds to
+// zero in float32 is recomputed exactly in double (the products of two floats are exact there), so
+// every sign is exact.
+using IntersectCluster = unsigned (*)(const ShearedRay& ray, const TriangleCluster& cluster, float tnear,
+                                      float tfar, ClusterHits& hits);
+
+// Two builds of that test, baseline x86-64 and AVX2 (triangle_clusters_avx2.cpp). Both compute
+// every lane with the same float32 operations in the same order, without contraction, so they
+// give the same bits, and a vertex shared by two triangles is sheared to the same coordinates
+// whichever lane or cluster holds it.
+namespace cluster_kernel {
+namespace baseline {
 unsigned intersect_cluster(const ShearedRay& ray, const TriangleCluster& cluster, float tnear, float tfar,
                            ClusterHits& hits);
+}
+namespace avx2 {
+unsigned intersect_cluster(const ShearedRay& ray, const TriangleCluster& cluster, float tnear, float tfar,
+                           ClusterHits& hits);
+}
+}  // namespace cluster_kernel
+
+// The AVX2 build, or nullptr when the CPU lacks AVX2.
+IntersectCluster avx2_intersect_cluster();
+// The AVX2 build where the CPU has it, else the baseline.
+IntersectCluster best_intersect_cluster();
 
 }  // namespace rt
