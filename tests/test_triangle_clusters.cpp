@@ -107,7 +107,8 @@ TEST_CASE("cluster kernel: both builds give the same bits and let no vertex-aime
                            : kind == 1 ? 0.5f * (flat.positions[0] + flat.positions[spoke])
                            : kind == 2 ? flat.positions[spoke]
                                        : centre + radius * (uniform(-2, 2) * u + uniform(-2, 2) * v);
-      const rt::ShearedRay ray = rt::shear_ray(origin, target - origin);
+      rt::ShearedRay ray;
+      rt::shear_ray(origin, target - origin, ray);
       const float tfar = r % 6 == 5 ? 0.5f : std::numeric_limits<float>::infinity();  // some end short of the disc
       const Answer base = ask(baseline, ray, cluster, 0.0f, tfar);
       if (avx2) {
@@ -157,7 +158,8 @@ TEST_CASE("cluster kernel: both builds give the same bits on random clusters", "
     const Vec3f origin(uniform(-2, 2) * scale, uniform(-2, 2) * scale, uniform(-2, 2) * scale);
     const Vec3f target = flat.positions[random() % flat.positions.size()];
     const Vec3f direction = round % 2 == 0 ? target - origin : Vec3f(uniform(-1, 1), uniform(-1, 1), uniform(-1, 1));
-    const rt::ShearedRay ray = rt::shear_ray(origin, direction);
+    rt::ShearedRay ray;
+    rt::shear_ray(origin, direction, ray);
     const Answer base = ask(baseline, ray, cluster, 0.0f, std::numeric_limits<float>::infinity());
     CHECK(ask(avx2, ray, cluster, 0.0f, std::numeric_limits<float>::infinity()) == base);
     CHECK(base.found >> count == 0u);  // lanes past the count are never reported

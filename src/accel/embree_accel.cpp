@@ -748,7 +748,8 @@ Hit to_hit(const BestHit& best) {
 
 Hit EmbreeAccel::intersect(const Ray& ray) const {
   BestHit best = no_hit_yet(ray);
-  const ShearedRay sheared = impl_->shear ? shear_ray(ray.origin, ray.direction) : ShearedRay{};
+  ShearedRay sheared;
+  if (impl_->shear) shear_ray(ray.origin, ray.direction, sheared);
   HitContext context{{}, &best, &sheared};
   Query query(context.embree, impl_->context_filter, false);
   RTCRayHit rayhit;
@@ -783,7 +784,7 @@ void EmbreeAccel::intersect_coherent(std::span<const Ray> rays, std::span<Hit> h
       valid[i] = active ? -1 : 0;
       const Ray& ray = rays[first + (active ? i : 0)];
       best[i] = no_hit_yet(ray);
-      if (impl_->shear) sheared[i] = shear_ray(ray.origin, ray.direction);
+      if (impl_->shear) shear_ray(ray.origin, ray.direction, sheared[i]);
       fill_packet_lane(ray, i, packet.ray);
       packet.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
       packet.hit.primID[i] = RTC_INVALID_GEOMETRY_ID;
@@ -809,7 +810,7 @@ void EmbreeAccel::occluded_coherent(std::span<const Ray> rays, std::span<std::ui
     for (unsigned i = 0; i < kPacketSize; ++i) {
       valid[i] = i < lanes ? -1 : 0;
       const Ray& ray = rays[first + (i < lanes ? i : 0)];
-      if (impl_->shear) sheared[i] = shear_ray(ray.origin, ray.direction);
+      if (impl_->shear) shear_ray(ray.origin, ray.direction, sheared[i]);
       fill_packet_lane(ray, i, packet);
     }
     query.occluded(valid, impl_->scene, packet);
@@ -818,7 +819,8 @@ void EmbreeAccel::occluded_coherent(std::span<const Ray> rays, std::span<std::ui
 }
 
 bool EmbreeAccel::occluded(const Ray& ray) const {
-  const ShearedRay sheared = impl_->shear ? shear_ray(ray.origin, ray.direction) : ShearedRay{};
+  ShearedRay sheared;
+  if (impl_->shear) shear_ray(ray.origin, ray.direction, sheared);
   ShadowContext context{{}, &sheared};
   Query query(context.embree, nullptr, false);
   RTCRay embree_ray;

@@ -184,8 +184,7 @@ bool is_degenerate(const FlatScene& flat, std::uint32_t triangle) {
   return glm::cross(p1 - p0, p2 - p0) == Vec3d(0.0);
 }
 
-ShearedRay shear_ray(const Vec3f& origin, const Vec3f& direction) {
-  ShearedRay ray;
+void shear_ray(const Vec3f& origin, const Vec3f& direction, ShearedRay& ray) {
   const Vec3f a = glm::abs(direction);
   ray.kz = a.x > a.y ? (a.x > a.z ? 0 : 2) : (a.y > a.z ? 1 : 2);
   ray.kx = (ray.kz + 1) % 3;
@@ -195,12 +194,11 @@ ShearedRay shear_ray(const Vec3f& origin, const Vec3f& direction) {
   ray.oz = origin[ray.kz];
   const float dz = direction[ray.kz];
   ray.valid = dz != 0.0f && std::isfinite(dz) && std::isfinite(direction[ray.kx]) && std::isfinite(direction[ray.ky]);
-  if (!ray.valid) return ray;
+  if (!ray.valid) return;
   // As intersect_triangle_watertight (reference_accel.cpp), in float32.
   ray.sx = -direction[ray.kx] / dz;
   ray.sy = -direction[ray.ky] / dz;
   ray.sz = 1.0f / dz;
-  return ray;
 }
 
 IntersectCluster avx2_intersect_cluster() {

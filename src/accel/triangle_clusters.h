@@ -42,7 +42,9 @@ struct ShearedRay {
   float sx = 0.0f, sy = 0.0f, sz = 0.0f;
   bool valid = false;  // false for a zero or non-finite direction, which hits nothing
 };
-ShearedRay shear_ray(const Vec3f& origin, const Vec3f& direction);
+// Sets `ray` up for `origin` and `direction` (world space, float32). Written in place: a returned
+// copy is read back wider than it was written, which stalls store forwarding in the packet loops.
+void shear_ray(const Vec3f& origin, const Vec3f& direction, ShearedRay& ray);
 
 // Per lane of a cluster: ray parameter and barycentrics of vertices 1 and 2 of a hit.
 struct ClusterHits {
