@@ -6,8 +6,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <memory>
 #include <numbers>
+#include <random>
 #include <set>
 
 #include "rt/accel/accel.h"
@@ -126,6 +128,28 @@ TEST_CASE("cmj_sample: every point in the unit square, one per y stratum, column
     }
   }
   CHECK(rt::cmj_sample(3, 16, 1) != rt::cmj_sample(3, 16, 2));
+}
+
+// The batch form the area-light shader draws its samples with: the same bits as cmj_sample, for
+// counts that are and are not powers of two or squares (the cycle walk and the mask shortcuts),
+// from any first point, across its 64-point chunks.
+TEST_CASE("cmj_samples: the points of cmj_sample bit for bit, from any first index, in any chunking") {
+  std::mt19937 random(167);
+  int compared = 0;
+  for (std::uint32_t count : {1u, 2u, 3u, 4u, 5u, 8u, 9u, 12u, 16u, 17u, 31u, 36u, 64u, 65u, 100u, 200u}) {
+    for (int round = 0; round < 40; ++round) {
+      const std::uint32_t pattern = round == 0 ? 0u : std::uint32_t(random());
+      const std::uint32_t first = round % 4 == 0 ? 0u : std::uint32_t(random() % count);
+      std::vector<Vec2d> points(count - first);
+      rt::cmj_samples(first, points, count, pattern);
+      for (std::uint32_t k = 0; k < points.size(); ++k) {
+        const Vec2d u = rt::cmj_sample(first + k, count, pattern);
+        CHECK(std::memcmp(&u, &points[k], sizeof u) == 0);
+        ++compared;
+      }
+    }
+  }
+  CHECK(compared > 10000);
 }
 
 TEST_CASE("sample_triangle_uniform: barycentrics on the triangle, uniform (mean at the centroid)") {

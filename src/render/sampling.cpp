@@ -8,36 +8,63 @@ namespace rt {
 
 namespace {
 
-// Kensler's hashed permutation of [0, length): element `i` of permutation number `pattern`, by
-// cycle-walking a bijective hash on the next power of two (Kensler 2013, listing 3).
-std::uint32_t permute(std::uint32_t i, std::uint32_t length, std::uint32_t pattern) {
+// The smallest all-ones mask covering length - 1 (the next power of two, minus one).
+std::uint32_t cover_mask(std::uint32_t length) {
   std::uint32_t w = length - 1;
   w |= w >> 1;
   w |= w >> 2;
   w |= w >> 4;
   w |= w >> 8;
   w |= w >> 16;
+  return w;
+}
+
+// One round of Kensler's bijective hash on [0, w] (Kensler 2013, listing 3's loop body).
+std::uint32_t hash_round(std::uint32_t i, std::uint32_t w, std::uint32_t pattern) {
+  i ^= pattern;
+  i *= 0xe170893du;
+  i ^= pattern >> 16;
+  i ^= (i & w) >> 4;
+  i ^= pattern >> 8;
+  i *= 0x0929eb3fu;
+  i ^= pattern >> 23;
+  i ^= (i & w) >> 1;
+  i *= 1u | pattern >> 27;
+  i *= 0x6935fa69u;
+  i ^= (i & w) >> 11;
+  i *= 0x74dcb303u;
+  i ^= (i & w) >> 2;
+  i *= 0x9e501cc3u;
+  i ^= (i & w) >> 2;
+  i *= 0xc860a3dfu;
+  i &= w;
+  i ^= i >> 5;
+  return i;
+}
+
+// Kensler's hashed permutation of [0, length): element `i` of permutation number `pattern`, by
+// cycle-walking a bijective hash on the next power of two (Kensler 2013, listing 3).
+std::uint32_t permute(std::uint32_t i, std::uint32_t length, std::uint32_t pattern) {
+  const std::uint32_t w = cover_mask(length);
   do {
-    i ^= pattern;
-    i *= 0xe170893du;
-    i ^= pattern >> 16;
-    i ^= (i & w) >> 4;
-    i ^= pattern >> 8;
-    i *= 0x0929eb3fu;
-    i ^= pattern >> 23;
-    i ^= (i & w) >> 1;
-    i *= 1u | pattern >> 27;
-    i *= 0x6935fa69u;
-    i ^= (i & w) >> 11;
-    i *= 0x74dcb303u;
-    i ^= (i & w) >> 2;
-    i *= 0x9e501cc3u;
-    i ^= (i & w) >> 2;
-    i *= 0xc860a3dfu;
-    i &= w;
-    i ^= i >> 5;
+    i = hash_round(i, w, pattern);
   } while (i >= length);
   return (i + pattern) % length;
+}
+
+// permute of each of v[0 .. n): the first round for all of them in one loop the compiler
+// vectorises, the rare further rounds of the cycle walk one by one, and % as a mask when length is
+// a power of two.
+void permute_all(std::uint32_t* v, int n, std::uint32_t length, std::uint32_t pattern) {
+  const std::uint32_t w = cover_mask(length);
+  for (int k = 0; k < n; ++k) v[k] = hash_round(v[k], w, pattern);
+  for (int k = 0; k < n; ++k)
+    while (v[k] >= length) v[k] = hash_round(v[k], w, pattern);
+  if ((length & (length - 1)) == 0) {
+    for (int k = 0; k < n; ++k) v[k] = (v[k] + pattern) & (length - 1);
+  } else {
+    for (int k = 0; k < n; ++k) v[k] = (v[k] + pattern) % length;
+  }
 }
 
 // Kensler's hash of (i, pattern) to [0, 1) (listing 4), kept in double: 32 bits of jitter.
@@ -63,6 +90,37 @@ double angle_between(const Vec3d& a, const Vec3d& b) {
 // The component of unit-length-or-not `v` orthogonal to unit `axis`, normalised.
 Vec3d orthogonal_unit(const Vec3d& v, const Vec3d& axis) { return glm::normalize(v - glm::dot(v, axis) * axis); }
 
+// cmj_samples for at most kCmjChunk points: cmj_sample's steps, each over all the points before
+// the next.
+constexpr std::size_t kCmjChunk = 64;
+void cmj_chunk(std::uint32_t first, std::span<Vec2d> out, std::uint32_t count, std::uint32_t pattern) {
+  const auto n = static_cast<int>(out.size());
+  const auto columns = static_cast<std::uint32_t>(std::sqrt(double(count)));
+  const std::uint32_t rows = (count + columns - 1) / columns;
+  std::uint32_t s[kCmjChunk], sx[kCmjChunk], sy[kCmjChunk];
+  for (int k = 0; k < n; ++k) s[k] = first + std::uint32_t(k);
+  permute_all(s, n, count, pattern * 0x51633e2du);
+  if ((columns & (columns - 1)) == 0) {
+    const auto shift = unsigned(__builtin_ctz(columns));
+    for (int k = 0; k < n; ++k) {
+      sx[k] = s[k] & (columns - 1);
+      sy[k] = s[k] >> shift;
+    }
+  } else {
+    for (int k = 0; k < n; ++k) {
+      sx[k] = s[k] % columns;
+      sy[k] = s[k] / columns;
+    }
+  }
+  permute_all(sx, n, columns, pattern * 0x68bc21ebu);
+  permute_all(sy, n, rows, pattern * 0x02e5be93u);
+  for (int k = 0; k < n; ++k) {
+    const double jx = jitter(s[k], pattern * 0x967a889bu), jy = jitter(s[k], pattern * 0x368cc8b7u);
+    out[std::size_t(k)] = {std::min((sx[k] + (sy[k] + jx) / rows) / columns, 1.0 - 0x1p-53),
+                           std::min((s[k] + jy) / count, 1.0 - 0x1p-53)};
+  }
+}
+
 }  // namespace
 
 Vec2d cmj_sample(std::uint32_t index, std::uint32_t count, std::uint32_t pattern) {
@@ -75,6 +133,11 @@ Vec2d cmj_sample(std::uint32_t index, std::uint32_t count, std::uint32_t pattern
   const std::uint32_t sy = permute(s / columns, rows, pattern * 0x02e5be93u);
   const double jx = jitter(s, pattern * 0x967a889bu), jy = jitter(s, pattern * 0x368cc8b7u);
   return {std::min((sx + (sy + jx) / rows) / columns, 1.0 - 0x1p-53), std::min((s + jy) / count, 1.0 - 0x1p-53)};
+}
+
+void cmj_samples(std::uint32_t first, std::span<Vec2d> out, std::uint32_t count, std::uint32_t pattern) {
+  for (std::size_t done = 0; done < out.size(); done += kCmjChunk)
+    cmj_chunk(first + std::uint32_t(done), out.subspan(done, std::min(kCmjChunk, out.size() - done)), count, pattern);
 }
 
 Vec3d sample_triangle_uniform(Vec2d u) {

@@ -1,6 +1,7 @@
 #include "rt/render/shade.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numbers>
 #include <numeric>
@@ -219,8 +220,11 @@ template <class Shadows>
     }
     const auto pattern = static_cast<std::uint32_t>(mix64(path_seed ^ mix64((std::uint64_t(depth) << 32) + e)));
     EmitterSampler sampler(emitter, context.flat, context.scene, context.textures, point, plan.options.light_sampling);
+    std::array<Vec2d, 64> points;  // the pattern's points, drawn together a chunk at a time
     for (std::uint32_t k = 0; k < samples; ++k) {
-      const LightSample sample = sampler.sample(cmj_sample(k, samples, pattern));
+      if (k % points.size() == 0)
+        cmj_samples(k, std::span(points).first(std::min<std::size_t>(points.size(), samples - k)), samples, pattern);
+      const LightSample sample = sampler.sample(points[k % points.size()]);
       if (!sample.valid) {
         skip(SkipRule::sample_on_surface, e, 1);
         continue;

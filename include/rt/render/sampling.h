@@ -5,6 +5,7 @@
 // function of its indices and the image does not depend on thread count or tile order.
 
 #include <cstdint>
+#include <span>
 #include <optional>
 
 #include "rt/core/math.h"
@@ -27,6 +28,11 @@ constexpr double unit_double(std::uint64_t bits) { return static_cast<double>(bi
 // 13-01, 2013, the arbitrary-count version): y is stratified into `count` equal strata (one point
 // each), x into columns of a near-square grid, so any count is well stratified in both axes.
 Vec2d cmj_sample(std::uint32_t index, std::uint32_t count, std::uint32_t pattern);
+
+// Points first .. first + out.size() - 1 of the same pattern, out[k] = cmj_sample(first + k, count,
+// pattern) bit for bit, computed step by step over all of them (about 4x faster per point: the
+// integer hashing vectorises).
+void cmj_samples(std::uint32_t first, std::span<Vec2d> out, std::uint32_t count, std::uint32_t pattern);
 
 // Barycentrics (b0, b1, b2) of a uniformly distributed point on a triangle from u in [0, 1)^2, by
 // Heitz's low-distortion map ("A Low-Distortion Map Between Triangle and Square", 2019), which keeps
