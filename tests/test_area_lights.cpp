@@ -25,6 +25,7 @@
 #include "rt/render/sampling.h"
 #include "rt/render/shade.h"
 #include "rt/scene/shapes.h"
+#include "render/light_sample_lanes.h"
 #include "test_util.h"
 
 namespace {
@@ -150,6 +151,126 @@ TEST_CASE("cmj_samples: the points of cmj_sample bit for bit, from any first ind
     }
   }
   CHECK(compared > 10000);
+}
+
+// The samples the area-light shader draws (EmitterSampler::sample_many, its warp in SIMD lanes)
+// are sample()'s bit for bit: by solid angle, by area and automatic, on a quad and on a sphere of
+// many triangles (views past the cache, backs turned to the point), from points near and far, on
+// the lamp's plane and behind it, in chunks of every size.
+TEST_CASE("EmitterSampler::sample_many: sample's bits in every lane, whatever the strategy and the chunk") {
+  const auto same = [](const auto& a, const auto& b) { return std::memcmp(&a, &b, sizeof a) == 0; };
+  std::mt19937 random(2024);
+  const auto uniform = [&](double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(random); };
+  rt::Scene quad = floor_and_emitter({Vec3f(-1, -1, 1), Vec3f(-1, 1, 1), Vec3f(1, 1, 1), Vec3f(1, -1, 1)}, Vec3d(2.0),
+                                     diffuse_material(Vec3d(0.5)));
+  rt::Scene ball = floor_and_emitter({Vec3f(0, 0, 5), Vec3f(0.1f, 0, 5), Vec3f(0, 0.1f, 5)}, Vec3d(3.0),
+                                     diffuse_material(Vec3d(0.5)));
+  ball.nodes[0].models.pop_back();
+  rt::Node lamp;
+  lamp.parent_from_node = glm::translate(rt::Mat4d(1.0), Vec3d(0.2, -0.1, 1.0));
+  lamp.models.push_back({std::make_shared<const rt::TriangleMesh>(rt::make_sphere_mesh(0.3, 12, 6)), 1});
+  ball.nodes.push_back(lamp);
+  ball.nodes[0].children.push_back(1);
+  int compared = 0, invalid = 0, unlit = 0;
+  for (const rt::Scene* scene : {&quad, &ball}) {
+    const rt::FlatScene flat = rt::flatten_scene(*scene);
+    const rt::AreaLights lights = rt::collect_area_lights(*scene, flat);
+    REQUIRE(lights.emitters.size() == 1);
+    for (rt::LightSampling sampling : {rt::LightSampling::automatic, rt::LightSampling::area, rt::LightSampling::solid_angle}) {
+      for (int round = 0; round < 60; ++round) {
+        const double scale = round % 3 == 0 ? 0.05 : round % 3 == 1 ? 1.0 : 100.0;
+        Vec3d point(uniform(-scale, scale), uniform(-scale, scale), 1.0 + uniform(-scale, scale));
+        if (round % 10 == 7) point.z = 1.0;  // on the quad's plane
+        const std::uint32_t count = 1 + std::uint32_t(random() % 40);
+        std::vector<Vec2d> u(count);
+        rt::cmj_samples(0, u, count, std::uint32_t(random()));
+        rt::EmitterSampler many(lights.emitters[0], flat, *scene, nullptr, point, sampling);
+        rt::EmitterSampler one(lights.emitters[0], flat, *scene, nullptr, point, sampling);
+        std::vector<rt::LightSample> drawn(count);
+        const std::size_t chunk = 1 + std::size_t(round % 19);
+        for (std::size_t first = 0; first < count; first += chunk) {
+          const std::size_t n = std::min<std::size_t>(chunk, count - first);
+          many.sample_many(std::span(u).subspan(first, n), std::span(drawn).subspan(first, n));
+        }
+        for (std::uint32_t k = 0; k < count; ++k) {
+          const rt::LightSample expected = one.sample(u[k]);
+          const rt::LightSample& got = drawn[k];
+          REQUIRE(got.valid == expected.valid);
+          ++compared;
+          if (!expected.valid) {
+            ++invalid;
+            continue;
+          }
+          unlit += expected.radiance_over_pdf == Vec3d(0.0);
+          CHECK(same(got.direction, expected.direction));
+          CHECK(same(got.distance, expected.distance));
+          CHECK(same(got.radiance_over_pdf, expected.radiance_over_pdf));
+          CHECK(same(got.light_point.point, expected.light_point.point));
+          CHECK(same(got.light_point.geometric_normal, expected.light_point.geometric_normal));
+          CHECK(same(got.light_point.error_bound, expected.light_point.error_bound));
+          CHECK(got.texcoord.has_value() == expected.texcoord.has_value());
+        }
+      }
+    }
+  }
+  CHECK(compared > 5000);
+  CHECK(invalid > 0);  // points on the quad's plane
+  CHECK(unlit > 0);    // the sphere's far side
+}
+
+// The two builds of sample_many's lanes (render/light_sample_lanes.h: baseline SSE2 and AVX2) on the
+// same random lanes give the same bits; the test above ties the CPU's build to sample().
+TEST_CASE("light sample lanes: the AVX2 build computes the baseline build's bits") {
+  namespace lanes = rt::light_sample_lanes;
+  const lanes::Kernel avx2 = lanes::avx2_kernel();
+  if (!avx2) {
+    SUCCEED("this CPU has no AVX2: only the baseline build runs here");
+    return;
+  }
+  std::mt19937_64 random(77);
+  const auto uniform = [&](double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(random); };
+  const auto fill = [&](lanes::Vec3& v, double scale) {
+    for (int i = 0; i < lanes::kLanes; ++i) {
+      v.x.v[i] = uniform(-scale, scale);
+      v.y.v[i] = uniform(-scale, scale);
+      v.z.v[i] = uniform(-scale, scale);
+    }
+  };
+  for (int round = 0; round < 200; ++round) {
+    const double scale = round % 3 == 0 ? 1e4 : round % 3 == 1 ? 1e-3 : 1.0;
+    lanes::Input in;
+    for (double& x : in.point) x = uniform(-scale, scale);
+    for (lanes::Vec3* v : {&in.a, &in.b, &in.c_perp}) fill(*v, 1.0);
+    for (lanes::Vec3* v : {&in.p0, &in.p1, &in.p2}) fill(*v, scale);
+    for (int i = 0; i < lanes::kLanes; ++i) {
+      const double angle = uniform(-4.0, 4.0), alpha = uniform(0.0, 3.0);
+      in.sin_angle.v[i] = std::sin(angle);
+      in.cos_angle.v[i] = std::cos(angle);
+      in.sin_alpha.v[i] = std::sin(alpha);
+      in.cos_alpha.v[i] = std::cos(alpha);
+      in.cos_c.v[i] = uniform(-1.0, 1.0);
+      in.v.v[i] = uniform(0.0, 1.0);
+      in.b1.v[i] = uniform(0.0, 0.5);
+      in.b2.v[i] = uniform(0.0, 0.5);
+      in.edge_term.v[i] = uniform(0.0, scale);
+      in.by_solid_angle[i] = random() % 4 ? -1 : 0;
+    }
+    in.sin_angle.v[2] = in.cos_angle.v[2] = 0.0;  // a zero denominator: q = 1
+    const int count = 1 + round % lanes::kLanes;
+    lanes::Output a, b;
+    lanes::baseline_kernel()(in, count, a);
+    avx2(in, count, b);
+    for (int i = 0; i < count; ++i) {
+      CHECK(a.valid[i] == b.valid[i]);
+      if (!a.valid[i]) continue;
+      for (const auto& [x, y] : {std::pair{&a.point, &b.point}, std::pair{&a.direction, &b.direction}})
+        CHECK((std::memcmp(&x->x.v[i], &y->x.v[i], 8) == 0 && std::memcmp(&x->y.v[i], &y->y.v[i], 8) == 0 &&
+               std::memcmp(&x->z.v[i], &y->z.v[i], 8) == 0));
+      for (const auto& [x, y] : {std::pair{&a.b1, &b.b1}, std::pair{&a.b2, &b.b2}, std::pair{&a.error_bound, &b.error_bound},
+                                 std::pair{&a.distance, &b.distance}})
+        CHECK(std::memcmp(&x->v[i], &y->v[i], 8) == 0);
+    }
+  }
 }
 
 TEST_CASE("sample_triangle_uniform: barycentrics on the triangle, uniform (mean at the centroid)") {

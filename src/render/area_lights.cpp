@@ -11,6 +11,7 @@
 #include "rt/core/error.h"
 #include "rt/core/memory.h"
 #include "rt/render/sampling.h"
+#include "light_sample_lanes.h"
 
 namespace rt {
 
@@ -183,43 +184,30 @@ EmitterSampler::View EmitterSampler::view_of(const EmitterTriangle& t) const {
   return view;
 }
 
-LightSample EmitterSampler::sample(Vec2d u) {
+EmitterSampler::Choice EmitterSampler::choose(double uy) const {
   const std::vector<double>& cdf = emitter_.cdf;
-  const auto it = std::upper_bound(cdf.begin(), cdf.end(), u.y);
-  const std::size_t i = std::min(std::size_t(it - cdf.begin()), cdf.size() - 1);
-  const double low = i > 0 ? cdf[i - 1] : 0.0;
-  const double probability = cdf[i] - low;
-  const double v = std::clamp((u.y - low) / probability, 0.0, 1.0 - 0x1p-53);
-  const EmitterTriangle& t = emitter_.triangles[i];
-  View uncached;
-  const View* view = &uncached;
-  if (i < kCachedTriangles) {
-    if (!cached_[i]) {
-      cache_[i] = view_of(t);
-      cached_[i] = true;
-    }
-    view = &cache_[i];
-  } else {
-    uncached = view_of(t);
-  }
+  const auto it = std::upper_bound(cdf.begin(), cdf.end(), uy);
+  Choice choice;
+  choice.triangle = std::min(std::size_t(it - cdf.begin()), cdf.size() - 1);
+  const double low = choice.triangle > 0 ? cdf[choice.triangle - 1] : 0.0;
+  choice.probability = cdf[choice.triangle] - low;
+  choice.v = std::clamp((uy - low) / choice.probability, 0.0, 1.0 - 0x1p-53);
+  return choice;
+}
 
-  LightSample sample;
-  Vec3d b;
-  if (view->by_solid_angle) {
-    const auto along = barycentrics_along(point_, view->spherical.sample({u.x, v}), t.p0, t.p1, t.p2);
-    if (!along) return sample;
-    b = *along;
-  } else {
-    b = sample_triangle_uniform({u.x, v});
+const EmitterSampler::View& EmitterSampler::view(std::size_t i, View& uncached) {
+  if (i >= kCachedTriangles) return uncached = view_of(emitter_.triangles[i]);
+  if (!cached_[i]) {
+    cache_[i] = view_of(emitter_.triangles[i]);
+    cached_[i] = true;
   }
-  sample.light_point = make_surface_point(t.p0, t.p1, t.p2, t.frame, b.y, b.z);
-  const Vec3d offset = sample.light_point.point - point_;
-  sample.distance = glm::length(offset);
-  if (!(sample.distance > 0.0)) return sample;
-  sample.direction = offset / sample.distance;
-  sample.valid = true;
+  return cache_[i];
+}
+
+void EmitterSampler::weigh(LightSample& sample, const EmitterTriangle& t, const Choice& choice, const View& view,
+                           const Vec3d& b) const {
   const double cos_emitter = -glm::dot(t.normal, sample.direction);
-  if (!(cos_emitter > 0.0)) return sample;  // the triangle's back faces the point: no radiance
+  if (!(cos_emitter > 0.0)) return;  // the triangle's back faces the point: no radiance
 
   const Vec3d radiance(scene_.materials[emitter_.material].emission);
   if (textures_ && textures_->has_emission(emitter_.material) && has_texcoords(flat_))
@@ -227,10 +215,107 @@ LightSample EmitterSampler::sample(Vec2d u) {
   // Solid-angle density of the direction: probability / solid angle, or by area
   // probability / area * r^2 / cos(theta') (the change of measure dA = r^2 / cos(theta') d omega).
   sample.radiance_over_pdf =
-      view->by_solid_angle
-          ? radiance * (view->spherical.solid_angle() / probability)
-          : radiance * (t.area * cos_emitter / (probability * sample.distance * sample.distance));
+      view.by_solid_angle
+          ? radiance * (view.spherical.solid_angle() / choice.probability)
+          : radiance * (t.area * cos_emitter / (choice.probability * sample.distance * sample.distance));
+}
+
+LightSample EmitterSampler::sample(Vec2d u) {
+  const Choice choice = choose(u.y);
+  const EmitterTriangle& t = emitter_.triangles[choice.triangle];
+  View uncached;
+  const View& seen = view(choice.triangle, uncached);
+
+  LightSample sample;
+  Vec3d b;
+  if (seen.by_solid_angle) {
+    const auto along = barycentrics_along(point_, seen.spherical.sample({u.x, choice.v}), t.p0, t.p1, t.p2);
+    if (!along) return sample;
+    b = *along;
+  } else {
+    b = sample_triangle_uniform({u.x, choice.v});
+  }
+  sample.light_point = make_surface_point(t.p0, t.p1, t.p2, t.frame, b.y, b.z);
+  const Vec3d offset = sample.light_point.point - point_;
+  sample.distance = glm::length(offset);
+  if (!(sample.distance > 0.0)) return sample;
+  sample.direction = offset / sample.distance;
+  sample.valid = true;
+  weigh(sample, t, choice, seen, b);
   return sample;
+}
+
+void EmitterSampler::sample_many(std::span<const Vec2d> u, std::span<LightSample> out) {
+  namespace lanes = light_sample_lanes;
+  static const lanes::Kernel kernel = lanes::best_kernel();
+  lanes::Input in;
+  lanes::Output lane;
+  std::array<Choice, lanes::kLanes> choices;
+  std::array<const View*, lanes::kLanes> views;
+  std::array<View, lanes::kLanes> uncached;
+  std::array<Vec3d, lanes::kLanes> uniform;  // sample_triangle_uniform's barycentrics, where by area
+  for (int axis = 0; axis < 3; ++axis) in.point[axis] = point_[axis];
+  const auto set = [](lanes::Vec3& to, int k, const Vec3d& v) {
+    to.x.v[k] = v.x;
+    to.y.v[k] = v.y;
+    to.z.v[k] = v.z;
+  };
+  for (std::size_t first = 0; first < u.size(); first += lanes::kLanes) {
+    const int count = static_cast<int>(std::min<std::size_t>(lanes::kLanes, u.size() - first));
+    // Gather each lane's triangle and warp; the lanes past `count` up to a multiple of 4 repeat
+    // the last one.
+    for (int k = 0; k < (count + 3) / 4 * 4; ++k) {
+      const int from = std::min(k, count - 1);
+      const Vec2d uk = u[first + std::size_t(from)];
+      const Choice choice = choices[std::size_t(k)] = choose(uk.y);
+      const View& seen = *(views[std::size_t(k)] = &view(choice.triangle, uncached[std::size_t(k)]));
+      const EmitterTriangle& t = emitter_.triangles[choice.triangle];
+      set(in.p0, k, t.p0);
+      set(in.p1, k, t.p1);
+      set(in.p2, k, t.p2);
+      in.edge_term.v[k] = t.frame.edge_term;
+      in.by_solid_angle[k] = seen.by_solid_angle ? -1 : 0;
+      if (seen.by_solid_angle) {
+        const SphericalTriangle& spherical = seen.spherical;
+        const double angle = spherical.warp_angle(uk.x);
+        in.sin_angle.v[k] = std::sin(angle);  // as SphericalTriangle::sample computes them
+        in.cos_angle.v[k] = std::cos(angle);
+        in.v.v[k] = choice.v;
+        in.b1.v[k] = in.b2.v[k] = 0.0;  // read but not used
+        in.cos_alpha.v[k] = spherical.cos_alpha();
+        in.sin_alpha.v[k] = spherical.sin_alpha();
+        in.cos_c.v[k] = spherical.cos_c();
+        set(in.a, k, spherical.a());
+        set(in.b, k, spherical.b());
+        set(in.c_perp, k, spherical.c_perp());
+      } else {
+        const Vec3d b = uniform[std::size_t(k)] = sample_triangle_uniform({uk.x, choice.v});
+        in.b1.v[k] = b.y;
+        in.b2.v[k] = b.z;
+        // The warp's inputs are read but not used: any finite values.
+        in.sin_angle.v[k] = in.cos_angle.v[k] = in.v.v[k] = in.cos_alpha.v[k] = in.sin_alpha.v[k] = in.cos_c.v[k] = 0.0;
+        set(in.a, k, Vec3d(1.0, 0.0, 0.0));
+        set(in.b, k, Vec3d(0.0, 1.0, 0.0));
+        set(in.c_perp, k, Vec3d(0.0, 0.0, 1.0));
+      }
+    }
+    kernel(in, count, lane);
+    for (int k = 0; k < count; ++k) {
+      LightSample& sample = out[first + std::size_t(k)] = LightSample{};
+      if (!lane.valid[k]) continue;
+      const Choice& choice = choices[std::size_t(k)];
+      const EmitterTriangle& t = emitter_.triangles[choice.triangle];
+      sample.light_point.point = {lane.point.x.v[k], lane.point.y.v[k], lane.point.z.v[k]};
+      sample.light_point.geometric_normal = t.frame.geometric_normal;
+      sample.light_point.error_bound = lane.error_bound.v[k];
+      sample.distance = lane.distance.v[k];
+      sample.direction = {lane.direction.x.v[k], lane.direction.y.v[k], lane.direction.z.v[k]};
+      sample.valid = true;
+      const Vec3d b = in.by_solid_angle[k] ? Vec3d(1.0 - lane.b1.v[k] - lane.b2.v[k], lane.b1.v[k], lane.b2.v[k])
+                                           : uniform[std::size_t(k)];
+      weigh(sample, t, choice, *views[std::size_t(k)], b);
+    }
+  }
 }
 
 Ray shadow_ray_to_sample(const RayOffset& policy, const Vec3f& origin, const LightSample& sample) {

@@ -62,6 +62,10 @@ RT_LANE_INLINE M4 operator>(const D4& a, const D4& b) {
 RT_LANE_INLINE M4 operator>=(const D4& a, const D4& b) {
   return {_mm256_cmp_pd(a.v, b.v, _CMP_GE_OQ)};
 }
+// Unordered: true where either operand is NaN, as scalar != is.
+RT_LANE_INLINE M4 operator!=(const D4& a, const D4& b) {
+  return {_mm256_cmp_pd(a.v, b.v, _CMP_NEQ_UQ)};
+}
 
 RT_LANE_INLINE M4 operator&(const M4& a, const M4& b) {
   return {_mm256_and_pd(a.v, b.v)};
@@ -142,6 +146,7 @@ RT_LANE_INLINE D4 operator-(const D4& a) {
 RT_LANE_COMPARE(<, _mm_cmplt_pd)  // ordered: false where either is NaN, as in scalar code
 RT_LANE_COMPARE(>, _mm_cmpgt_pd)
 RT_LANE_COMPARE(>=, _mm_cmpge_pd)
+RT_LANE_COMPARE(!=, _mm_cmpneq_pd)  // unordered: true where either is NaN, as scalar != is
 #undef RT_LANE_COMPARE
 
 RT_LANE_INLINE M4 operator&(const M4& a, const M4& b) {

@@ -190,8 +190,8 @@ SphericalTriangle::SphericalTriangle(const Vec3d& p, const Vec3d& a, const Vec3d
 Vec3d SphericalTriangle::sample(Vec2d u) const {
   // Arvo's first step: the sub-triangle A, B, C' of area u.x * area puts C' on the arc A C, at
   // cos(angle A C') = q.
-  const double sub_area = u.x * area_;
-  const double s = std::sin(sub_area - alpha_), t = std::cos(sub_area - alpha_);
+  const double angle = warp_angle(u.x);
+  const double s = std::sin(angle), t = std::cos(angle);
   const double uu = t - cos_alpha_, vv = s + sin_alpha_ * cos_c_;
   const double denominator = (vv * s + uu * t) * sin_alpha_;
   const double q = denominator != 0.0 ? std::clamp(((vv * t - uu * s) * cos_alpha_ - vv) / denominator, -1.0, 1.0) : 1.0;

@@ -178,6 +178,28 @@ struct LitSurface {
   const MaterialPlan& terms;
 };
 
+// offset_ray_origin(policy, surface, direction) for many directions: it depends on the direction
+// only through the side of the surface it leaves by (the sign of n . direction), so each side's
+// origin is computed once, when first asked for.
+class SideOrigins {
+ public:
+  SideOrigins(const RayOffset& policy, const SurfacePoint& surface) : policy_(policy), surface_(surface) {}
+  Vec3f leaving_along(const Vec3d& direction) {
+    const int side = glm::dot(surface_.geometric_normal, direction) >= 0.0 ? 0 : 1;
+    if (!known_[side]) {
+      origin_[side] = offset_ray_origin(policy_, surface_, direction);
+      known_[side] = true;
+    }
+    return origin_[side];
+  }
+
+ private:
+  const RayOffset& policy_;
+  const SurfacePoint& surface_;
+  Vec3f origin_[2];
+  bool known_[2] = {false, false};
+};
+
 // The area lights' terms at a hit, in emitter order, each emitter's light_samples samples in
 // pattern order: term_k = L_e,k / pdf_k (C_d n.l_k + C_s max(n.h_k, 0)^sigma) / (pi N) where
 // n.l_k > 0, shadowed by its own ray. The emitter-level rules (unlit material, behind a planar
@@ -199,6 +221,7 @@ template <class Shadows>
       note(context, depth, "  area light {}: {} sample{} not traced ({})", emitter, amount, amount == 1 ? "" : "s",
            to_string(rule));
   };
+  SideOrigins origins{context.ray_offset, lit.surface};
   for (std::size_t e = 0; e < area_lights.emitters.size(); ++e) {
     const Emitter& emitter = area_lights.emitters[e];
     const std::size_t slot = context.scene.lights.size() + e;
@@ -220,11 +243,16 @@ template <class Shadows>
     }
     const auto pattern = static_cast<std::uint32_t>(mix64(path_seed ^ mix64((std::uint64_t(depth) << 32) + e)));
     EmitterSampler sampler(emitter, context.flat, context.scene, context.textures, point, plan.options.light_sampling);
-    std::array<Vec2d, 64> points;  // the pattern's points, drawn together a chunk at a time
+    // The pattern's points and their light samples, drawn together a chunk at a time.
+    std::array<Vec2d, 16> points;
+    std::array<LightSample, points.size()> drawn;
     for (std::uint32_t k = 0; k < samples; ++k) {
-      if (k % points.size() == 0)
-        cmj_samples(k, std::span(points).first(std::min<std::size_t>(points.size(), samples - k)), samples, pattern);
-      const LightSample sample = sampler.sample(points[k % points.size()]);
+      if (k % points.size() == 0) {
+        const auto chunk = std::span(points).first(std::min<std::size_t>(points.size(), samples - k));
+        cmj_samples(k, chunk, samples, pattern);
+        sampler.sample_many(chunk, drawn);
+      }
+      const LightSample& sample = drawn[k % points.size()];
       if (!sample.valid) {
         skip(SkipRule::sample_on_surface, e, 1);
         continue;
@@ -245,8 +273,7 @@ template <class Shadows>
         skip(SkipRule::sample_zero, e, 1);
         continue;
       }
-      const Ray shadow_ray =
-          shadow_ray_to_sample(context.ray_offset, offset_ray_origin(context.ray_offset, lit.surface, sample.direction), sample);
+      const Ray shadow_ray = shadow_ray_to_sample(context.ray_offset, origins.leaving_along(sample.direction), sample);
       if (shadow_ray.tfar > 0.0f) {
         shadows.query(slot, term, shadow_ray, int(k));
       } else {

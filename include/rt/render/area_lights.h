@@ -6,6 +6,7 @@
 #include <array>
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -114,6 +115,10 @@ class EmitterSampler {
   EmitterSampler(const Emitter& emitter, const FlatScene& flat, const Scene& scene, const TextureSampler* textures,
                  const Vec3d& point, LightSampling sampling);
   LightSample sample(Vec2d u);
+  // sample(u[k]) into out[k] for every k (out.size() >= u.size()), bit for bit where valid (an
+  // invalid sample is LightSample{}), with the warp's arithmetic done several samples at a time in
+  // SIMD lanes (light_sample_lanes.h).
+  void sample_many(std::span<const Vec2d> u, std::span<LightSample> out);
 
   static constexpr std::size_t kCachedTriangles = 4;
 
@@ -123,6 +128,18 @@ class EmitterSampler {
     SphericalTriangle spherical;
   };
   View view_of(const EmitterTriangle& triangle) const;
+  // The triangle that u.y picks through the cdf, its probability and u.y rescaled to its interval.
+  struct Choice {
+    std::size_t triangle = 0;
+    double probability = 0.0, v = 0.0;
+  };
+  Choice choose(double uy) const;
+  // How triangle i is seen: from the cache for the first kCachedTriangles, else into `uncached`.
+  const View& view(std::size_t i, View& uncached);
+  // A valid sample's radiance over pdf and texcoord, from its surface point, direction and
+  // distance and its barycentrics b.
+  void weigh(LightSample& sample, const EmitterTriangle& t, const Choice& choice, const View& view,
+             const Vec3d& b) const;
 
   const Emitter& emitter_;
   const FlatScene& flat_;

@@ -59,6 +59,16 @@ class SphericalTriangle {
   // u.y the point along its far side, so a stratified u gives stratified directions.
   Vec3d sample(Vec2d u) const;
 
+  // sample's steps, for computing it over many u at once (light_sample_lanes.h): u.x chooses the
+  // angle whose sine and cosine the warp takes; the rest reads the members below.
+  double warp_angle(double ux) const { return ux * area_ - alpha_; }
+  const Vec3d& a() const { return A_; }
+  const Vec3d& b() const { return B_; }
+  const Vec3d& c_perp() const { return C_perp_; }
+  double cos_alpha() const { return cos_alpha_; }
+  double sin_alpha() const { return sin_alpha_; }
+  double cos_c() const { return cos_c_; }
+
  private:
   Vec3d A_{0.0}, B_{0.0};
   Vec3d C_perp_{0.0};  // unit, C's component orthogonal to A

@@ -1,0 +1,54 @@
+#pragma once
+// EmitterSampler::sample_many's arithmetic over lanes (area_lights.cpp): Arvo's spherical warp after
+// its sine and cosine, the barycentrics where the direction meets the triangle, the sample's surface
+// point and its direction and distance from the shading point. World space, double. Built twice,
+// like batch_lanes.cpp: baseline x86-64 and AVX2 (light_sample_lanes_avx2.cpp), chosen once by what
+// the CPU has; each lane takes the scalar code's IEEE operations in the same order, so both builds
+// give SphericalTriangle::sample's, barycentrics_along's and make_surface_point's bits.
+
+#include <cstdint>
+
+#include "batch_shade.h"
+
+namespace rt::light_sample_lanes {
+
+constexpr int kLanes = 16;  // samples per call at most; a multiple of 4
+using Lanes = LaneArray<kLanes>;
+using Vec3 = Vec3Lanes<kLanes>;
+
+// Per lane: the sample's emitter triangle and how it is drawn (gathered by EmitterSampler).
+struct Input {
+  Input() {}  // not zeroed: every lane in use is written
+  double point[3];  // the shading point, the same for every lane
+  // Arvo's warp (SphericalTriangle's members): sine and cosine of u.x * area - alpha, the second
+  // sample coordinate, the angle at A's cosine and sine, cos of side AB, and the unit vectors A, B
+  // and C's part orthogonal to A. Read only where by_solid_angle.
+  Lanes sin_angle, cos_angle, v, cos_alpha, sin_alpha, cos_c;
+  Vec3 a, b, c_perp;
+  // The triangle (p0, p1, p2) and make_triangle_frame's edge term.
+  Vec3 p0, p1, p2;
+  Lanes edge_term;
+  // Where !by_solid_angle: the barycentrics b1, b2 of the point (sample_triangle_uniform).
+  Lanes b1, b2;
+  alignas(32) std::int64_t by_solid_angle[kLanes];  // all ones or 0
+};
+
+// Per lane: the sample's barycentrics b1, b2, surface point and error bound (make_surface_point),
+// its unit direction and distance from the shading point, and whether it has one (valid: the
+// direction met the triangle's plane and the point is not the shading point).
+struct Output {
+  Output() {}
+  Vec3 point, direction;
+  Lanes b1, b2, error_bound, distance;
+  alignas(32) std::int64_t valid[kLanes];  // all ones or 0
+};
+
+// One build: `count` lanes (<= kLanes) of `in` into `out`.
+using Kernel = void (*)(const Input& in, int count, Output& out);
+
+Kernel baseline_kernel();
+Kernel avx2_kernel();  // nullptr when the CPU lacks AVX2
+// The AVX2 build where the CPU has it, else the baseline.
+Kernel best_kernel();
+
+}  // namespace rt::light_sample_lanes
