@@ -195,8 +195,8 @@ EmitterSampler::Choice EmitterSampler::choose(double uy) const {
   return choice;
 }
 
-const EmitterSampler::View& EmitterSampler::view(std::size_t i, View& uncached) {
-  if (i >= kCachedTriangles) return uncached = view_of(emitter_.triangles[i]);
+const EmitterSampler::View& EmitterSampler::view(std::size_t i, View* uncached) {
+  if (i >= kCachedTriangles) return *uncached = view_of(emitter_.triangles[i]);
   if (!cached_[i]) {
     cache_[i] = view_of(emitter_.triangles[i]);
     cached_[i] = true;
@@ -224,7 +224,7 @@ LightSample EmitterSampler::sample(Vec2d u) {
   const Choice choice = choose(u.y);
   const EmitterTriangle& t = emitter_.triangles[choice.triangle];
   View uncached;
-  const View& seen = view(choice.triangle, uncached);
+  const View& seen = view(choice.triangle, &uncached);
 
   LightSample sample;
   Vec3d b;
@@ -252,7 +252,8 @@ void EmitterSampler::sample_many(std::span<const Vec2d> u, std::span<LightSample
   lanes::Output lane;
   std::array<Choice, lanes::kLanes> choices;
   std::array<const View*, lanes::kLanes> views;
-  std::array<View, lanes::kLanes> uncached;
+  // One view per lane for triangles past the cache, allocated only for emitters that have them.
+  if (emitter_.triangles.size() > kCachedTriangles) uncached_.resize(lanes::kLanes);
   std::array<Vec3d, lanes::kLanes> uniform;  // sample_triangle_uniform's barycentrics, where by area
   for (int axis = 0; axis < 3; ++axis) in.point[axis] = point_[axis];
   const auto set = [](lanes::Vec3& to, int k, const Vec3d& v) {
@@ -268,7 +269,7 @@ void EmitterSampler::sample_many(std::span<const Vec2d> u, std::span<LightSample
       const int from = std::min(k, count - 1);
       const Vec2d uk = u[first + std::size_t(from)];
       const Choice choice = choices[std::size_t(k)] = choose(uk.y);
-      const View& seen = *(views[std::size_t(k)] = &view(choice.triangle, uncached[std::size_t(k)]));
+      const View& seen = *(views[std::size_t(k)] = &view(choice.triangle, uncached_.data() + k));
       const EmitterTriangle& t = emitter_.triangles[choice.triangle];
       set(in.p0, k, t.p0);
       set(in.p1, k, t.p1);

@@ -134,8 +134,8 @@ class EmitterSampler {
     double probability = 0.0, v = 0.0;
   };
   Choice choose(double uy) const;
-  // How triangle i is seen: from the cache for the first kCachedTriangles, else into `uncached`.
-  const View& view(std::size_t i, View& uncached);
+  // How triangle i is seen: from the cache for the first kCachedTriangles, else into *uncached.
+  const View& view(std::size_t i, View* uncached);
   // A valid sample's radiance over pdf and texcoord, from its surface point, direction and
   // distance and its barycentrics b.
   void weigh(LightSample& sample, const EmitterTriangle& t, const Choice& choice, const View& view,
@@ -149,6 +149,7 @@ class EmitterSampler {
   LightSampling sampling_;
   std::array<View, kCachedTriangles> cache_{};
   std::array<bool, kCachedTriangles> cached_{};
+  std::vector<View> uncached_;  // sample_many's views of triangles past the cache, one per lane
 };
 
 // The shadow ray from a shading point to a light sample: from `origin` (already offset off the
