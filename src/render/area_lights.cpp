@@ -184,7 +184,7 @@ EmitterSampler::View EmitterSampler::view_of(const EmitterTriangle& t) const {
   return view;
 }
 
-EmitterSampler::Choice EmitterSampler::choose(double uy) const {
+[[gnu::always_inline]] inline EmitterSampler::Choice EmitterSampler::choose(double uy) const {
   const std::vector<double>& cdf = emitter_.cdf;
   const auto it = std::upper_bound(cdf.begin(), cdf.end(), uy);
   Choice choice;
@@ -195,7 +195,7 @@ EmitterSampler::Choice EmitterSampler::choose(double uy) const {
   return choice;
 }
 
-const EmitterSampler::View& EmitterSampler::view(std::size_t i, View* uncached) {
+[[gnu::always_inline]] inline const EmitterSampler::View& EmitterSampler::view(std::size_t i, View* uncached) {
   if (i >= kCachedTriangles) return *uncached = view_of(emitter_.triangles[i]);
   if (!cached_[i]) {
     cache_[i] = view_of(emitter_.triangles[i]);
@@ -204,7 +204,7 @@ const EmitterSampler::View& EmitterSampler::view(std::size_t i, View* uncached) 
   return cache_[i];
 }
 
-void EmitterSampler::weigh(LightSample& sample, const EmitterTriangle& t, const Choice& choice, const View& view,
+[[gnu::always_inline]] inline void EmitterSampler::weigh(LightSample& sample, const EmitterTriangle& t, const Choice& choice, const View& view,
                            const Vec3d& b) const {
   const double cos_emitter = -glm::dot(t.normal, sample.direction);
   if (!(cos_emitter > 0.0)) return;  // the triangle's back faces the point: no radiance
@@ -302,8 +302,11 @@ void EmitterSampler::sample_many(std::span<const Vec2d> u, std::span<LightSample
     }
     kernel(in, count, lane);
     for (int k = 0; k < count; ++k) {
-      LightSample& sample = out[first + std::size_t(k)] = LightSample{};
-      if (!lane.valid[k]) continue;
+      LightSample& sample = out[first + std::size_t(k)];
+      sample.valid = lane.valid[k] != 0;
+      if (!sample.valid) continue;
+      sample.radiance_over_pdf = Vec3d(0.0);
+      sample.texcoord.reset();
       const Choice& choice = choices[std::size_t(k)];
       const EmitterTriangle& t = emitter_.triangles[choice.triangle];
       sample.light_point.point = {lane.point.x.v[k], lane.point.y.v[k], lane.point.z.v[k]};
@@ -311,7 +314,6 @@ void EmitterSampler::sample_many(std::span<const Vec2d> u, std::span<LightSample
       sample.light_point.error_bound = lane.error_bound.v[k];
       sample.distance = lane.distance.v[k];
       sample.direction = {lane.direction.x.v[k], lane.direction.y.v[k], lane.direction.z.v[k]};
-      sample.valid = true;
       const Vec3d b = in.by_solid_angle[k] ? Vec3d(1.0 - lane.b1.v[k] - lane.b2.v[k], lane.b1.v[k], lane.b2.v[k])
                                            : uniform[std::size_t(k)];
       weigh(sample, t, choice, *views[std::size_t(k)], b);

@@ -115,9 +115,9 @@ class EmitterSampler {
   EmitterSampler(const Emitter& emitter, const FlatScene& flat, const Scene& scene, const TextureSampler* textures,
                  const Vec3d& point, LightSampling sampling);
   LightSample sample(Vec2d u);
-  // sample(u[k]) into out[k] for every k (out.size() >= u.size()), bit for bit where valid (an
-  // invalid sample is LightSample{}), with the warp's arithmetic done several samples at a time in
-  // SIMD lanes (light_sample_lanes.h).
+  // sample(u[k]) into out[k] for every k (out.size() >= u.size()), bit for bit where valid (of an
+  // invalid sample only `valid` is set), with the warp's arithmetic done several samples at a time
+  // in SIMD lanes (light_sample_lanes.h).
   void sample_many(std::span<const Vec2d> u, std::span<LightSample> out);
 
   static constexpr std::size_t kCachedTriangles = 4;
