@@ -20,7 +20,7 @@ std::uint32_t cover_mask(std::uint32_t length) {
 }
 
 // One round of Kensler's bijective hash on [0, w] (Kensler 2013, listing 3's loop body).
-std::uint32_t hash_round(std::uint32_t i, std::uint32_t w, std::uint32_t pattern) {
+[[gnu::always_inline]] inline std::uint32_t hash_round(std::uint32_t i, std::uint32_t w, std::uint32_t pattern) {
   i ^= pattern;
   i *= 0xe170893du;
   i ^= pattern >> 16;
@@ -55,7 +55,7 @@ std::uint32_t permute(std::uint32_t i, std::uint32_t length, std::uint32_t patte
 // permute of each of v[0 .. n): the first round for all of them in one loop the compiler
 // vectorises, the rare further rounds of the cycle walk one by one, and % as a mask when length is
 // a power of two.
-void permute_all(std::uint32_t* v, int n, std::uint32_t length, std::uint32_t pattern) {
+[[gnu::always_inline]] inline void permute_all(std::uint32_t* v, int n, std::uint32_t length, std::uint32_t pattern) {
   const std::uint32_t w = cover_mask(length);
   for (int k = 0; k < n; ++k) v[k] = hash_round(v[k], w, pattern);
   for (int k = 0; k < n; ++k)
@@ -68,7 +68,7 @@ void permute_all(std::uint32_t* v, int n, std::uint32_t length, std::uint32_t pa
 }
 
 // Kensler's hash of (i, pattern) to [0, 1) (listing 4), kept in double: 32 bits of jitter.
-double jitter(std::uint32_t i, std::uint32_t pattern) {
+[[gnu::always_inline]] inline double jitter(std::uint32_t i, std::uint32_t pattern) {
   i ^= pattern;
   i ^= i >> 17;
   i ^= i >> 10;
@@ -92,8 +92,10 @@ Vec3d orthogonal_unit(const Vec3d& v, const Vec3d& axis) { return glm::normalize
 
 // cmj_samples for at most kCmjChunk points: cmj_sample's steps, each over all the points before
 // the next.
+// Built for AVX2 as well (8 lanes of 32-bit multiplies; SSE2 has no pmulld), chosen when the
+// program loads; integer hashing and the same double operations, so both give the same bits.
 constexpr std::size_t kCmjChunk = 64;
-void cmj_chunk(std::uint32_t first, std::span<Vec2d> out, std::uint32_t count, std::uint32_t pattern) {
+[[gnu::target_clones("avx2", "default")]] void cmj_chunk(std::uint32_t first, std::span<Vec2d> out, std::uint32_t count, std::uint32_t pattern) {
   const auto n = static_cast<int>(out.size());
   const auto columns = static_cast<std::uint32_t>(std::sqrt(double(count)));
   const std::uint32_t rows = (count + columns - 1) / columns;
