@@ -48,11 +48,19 @@ class ScopedFlushDenormals {
 };
 
 // Timing every query costs two timestamp reads each (5-12% of the render), and a timed pixel takes
-// the scalar shading path; timing one pixel in kTimingStride, on diagonals so that every column and
-// row is sampled, estimates the shares of render time per ray kind from 32k pixels of a 1024²
-// image. At 1 in 8, --stats made the diffuse torus's render 7% slower; at 1 in 32, about 1%.
-constexpr int kTimingStride = 32;
-bool is_timing_sample(int x, int y) { return (x + 3 * y) % kTimingStride == 0; }
+// the scalar shading path, so only one pixel in `stride` is timed, on diagonals ((x + 3 y) % stride
+// == 0, stride a power of two) so that every row and column is sampled. The stride keeps about
+// kTimedPixels pixels timed, enough for the shares of render time per ray kind: 8 below 256², 256
+// from 1024². At 1 in 8 on a 1024² image, --stats made the diffuse torus's render 7%
+// slower; at 1 in 256, 2-4%, about half of it the timestamps around every packet.
+constexpr std::int64_t kTimedPixels = 4096;
+int timing_stride(int width, int height) {
+  const std::int64_t pixels = std::int64_t(width) * std::int64_t(height);
+  int stride = 8;
+  while (stride < 256 && pixels / (2 * stride) >= kTimedPixels) stride *= 2;
+  return stride;
+}
+bool is_timing_sample(int x, int y, int stride) { return (x + 3 * y) % stride == 0; }
 
 // A block's recorded shadow rays (PendingShading::shadow_rays, world space) traced as packets,
 // light slot by light slot so that a packet goes towards one light (a single light: in recorded
@@ -154,6 +162,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   const PixelRegion region = checked_region(scene, options.region);
   const CameraFrame frame = make_camera_frame(scene.camera, width, scene.settings.height, scene.source);
   const PixelCentreRays centre_rays(frame);
+  const int stride = timing_stride(width, scene.settings.height);  // of the timed pixels (options.time_queries)
   const TextureSampler textures(scene, options.texture_cache_bytes);
   RenderResult result;
   result.textures = textures.use();
@@ -244,7 +253,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
     std::array<bool, kBlockPixels> timed{};
     std::array<std::uint64_t, kBlockPixels>& ticks = state.ticks;  // per timed pixel: its loop ticks this sample
     if (options.time_queries)
-      for (int k = 0; k < n; ++k) timed[k] = is_timing_sample(xs[k], ys[k]);
+      for (int k = 0; k < n; ++k) timed[k] = is_timing_sample(xs[k], ys[k], stride);
     std::array<Vec3d, kBlockPixels>& sums = state.sums;  // linear RGB, double: the box filter's average (spp > 1)
     if (spp > 1) sums.fill(Vec3d(0.0));
     std::array<Ray, kBlockPixels>& rays = state.rays;
