@@ -252,8 +252,9 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
     packet_start[std::size_t(packets)] = n;
     std::array<bool, kBlockPixels> timed{};
     std::array<std::uint64_t, kBlockPixels>& ticks = state.ticks;  // per timed pixel: its loop ticks this sample
+    bool block_timed = false;  // any pixel of the block timed: only then are its queries timed
     if (options.time_queries)
-      for (int k = 0; k < n; ++k) timed[k] = is_timing_sample(xs[k], ys[k], stride);
+      for (int k = 0; k < n; ++k) block_timed |= timed[k] = is_timing_sample(xs[k], ys[k], stride);
     std::array<Vec3d, kBlockPixels>& sums = state.sums;  // linear RGB, double: the box filter's average (spp > 1)
     if (spp > 1) sums.fill(Vec3d(0.0));
     std::array<Ray, kBlockPixels>& rays = state.rays;
@@ -275,9 +276,11 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
         const int first = packet_start[std::size_t(p)], count = packet_start[std::size_t(p) + 1] - first;
         const auto packet_rays = std::span(rays).subspan(std::size_t(first), std::size_t(count));
         const auto packet_hits = std::span(hits).subspan(std::size_t(first), std::size_t(count));
-        start = options.time_queries ? __rdtsc() : 0;
+        const bool packet_timed = block_timed && std::any_of(timed.begin() + first, timed.begin() + first + count,
+                                                             [](bool t) { return t; });
+        start = packet_timed ? __rdtsc() : 0;
         accel.intersect_coherent(packet_rays, packet_hits);
-        if (options.time_queries) {
+        if (packet_timed) {
           const std::uint64_t share = (__rdtsc() - start) / std::uint64_t(count);
           if (counts.intersect_ticks_per_depth.empty()) counts.intersect_ticks_per_depth.resize(1, 0);
           for (int k = first; k < first + count; ++k)
@@ -308,9 +311,9 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
       }
       if (batching) batch.trace_reflections(state.batch, counts, pending);
 
-      const std::uint64_t shadow_ticks = state.shadows.trace(accel, pending, slot_count, options.time_queries);
+      const std::uint64_t shadow_ticks = state.shadows.trace(accel, pending, slot_count, block_timed);
       const std::size_t shadow_count = pending.shadow_rays.size();
-      if (shadow_count > 0 && options.time_queries) {
+      if (shadow_count > 0 && block_timed) {
         const std::uint64_t share = shadow_ticks / std::uint64_t(shadow_count);
         for (int k = 0; k < n; ++k) {
           if (!timed[k]) continue;
