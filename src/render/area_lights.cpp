@@ -269,7 +269,8 @@ void EmitterSampler::sample_many(std::span<const Vec2d> u, std::span<LightSample
       const int from = std::min(k, count - 1);
       const Vec2d uk = u[first + std::size_t(from)];
       const Choice choice = choices[std::size_t(k)] = choose(uk.y);
-      const View& seen = *(views[std::size_t(k)] = &view(choice.triangle, uncached_.data() + k));
+      View* spill = uncached_.empty() ? nullptr : &uncached_[std::size_t(k)];  // read past the cache only
+      const View& seen = *(views[std::size_t(k)] = &view(choice.triangle, spill));
       const EmitterTriangle& t = emitter_.triangles[choice.triangle];
       set(in.p0, k, t.p0);
       set(in.p1, k, t.p1);
