@@ -292,7 +292,11 @@ std::int32_t BatchShader::shade_lane(const Lanes& lanes, int i, int depth, const
   Secondary& secondary = next.emplace_back();  // in place, as ShadowRecorder's records
   secondary.ray.origin = Vec3f(lanes.reflection_origin.x[i], lanes.reflection_origin.y[i], lanes.reflection_origin.z[i]);
   secondary.ray.direction = Vec3f(lane(lanes.reflected, i));
-  secondary.throughput = next_throughput;
+  // Component by component: next_throughput may have been spilled by 8-byte stores, and a wider
+  // load of it would stall store forwarding (as in ShadowRecorder).
+  secondary.throughput.x = next_throughput.x;
+  secondary.throughput.y = next_throughput.y;
+  secondary.throughput.z = next_throughput.z;
   secondary.weight = reflective;
   secondary.parent = parent;
   secondary.child = -1;

@@ -25,9 +25,10 @@ struct ShadowRecorder {
     t.query = PendingShading::kNoQuery;
   }
   [[gnu::always_inline]] void query(std::size_t slot, const Vec3d& term, const Ray& shadow_ray, int = 0) {
-    counts.add_shadow_query(light_count, slot);
     PendingShading::Term& t = pending.terms.emplace_back();
-    t.term = term;
+    t.term.x = term.x;  // component by component: `term` may have been spilled by 8-byte stores,
+    t.term.y = term.y;  // and a wider load of it would stall store forwarding
+    t.term.z = term.z;
     t.query = static_cast<std::uint32_t>(pending.shadow_rays.size());
     Ray& ray = pending.shadow_rays.emplace_back();
     ray.origin = shadow_ray.origin;
@@ -35,6 +36,7 @@ struct ShadowRecorder {
     ray.tnear = shadow_ray.tnear;
     ray.tfar = shadow_ray.tfar;
     pending.shadow_lights.push_back(static_cast<std::uint32_t>(slot));
+    counts.add_shadow_query(light_count, slot);
   }
 };
 
