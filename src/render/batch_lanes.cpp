@@ -21,24 +21,8 @@ namespace lm = lane_math;
 using lm::D4;
 using lm::F4;
 using lm::M4;
+using lm::Xyz;
 using ray_offset_detail::kScaledRoundoff;
-
-struct Xyz {
-  D4 x, y, z;
-};
-
-[[gnu::always_inline]] static inline void load(Xyz& out, const Vec3Lanes<kLanes>& v, int g) {
-  lm::load(out.x, v.x.v + g);
-  lm::load(out.y, v.y.v + g);
-  lm::load(out.z, v.z.v + g);
-}
-
-[[gnu::always_inline]] static inline void store(Vec3Lanes<kLanes>& to, int g, const D4& x, const D4& y,
-                                                const D4& z) {
-  lm::store(to.x.v + g, x);
-  lm::store(to.y.v + g, y);
-  lm::store(to.z.v + g, z);
-}
 
 // w0 v0 + w1 v1 + w2 v2, component by component, in that order (make_surface_point's and the
 // shading normal's interpolation).
@@ -55,8 +39,8 @@ struct Xyz {
                                                       Vec3fLanes<kLanes>& origin) {
   const D4 sign = lm::select(cosine >= D4{}, lm::broadcast(1.0), lm::broadcast(-1.0));  // n or -n, exactly
   Xyz n, p;
-  load(n, block.geometric_normal, g);
-  load(p, block.point, g);
+  lm::load(n, block.geometric_normal, g);
+  lm::load(p, block.point, g);
   const D4 sx = sign * n.x, sy = sign * n.y, sz = sign * n.z;
   if (policy.fixed) {
     const D4 epsilon = lm::broadcast(policy.epsilon);
@@ -82,11 +66,11 @@ void surfaces(const Gathered& in, const OriginPolicy& policy, Lanes& block) {
     lm::load(b2, in.b2.v + g);
     const D4 w0 = one - b1 - b2;
     Xyz p0, p1, p2;
-    load(p0, in.p0, g);
-    load(p1, in.p1, g);
-    load(p2, in.p2, g);
+    lm::load(p0, in.p0, g);
+    lm::load(p1, in.p1, g);
+    lm::load(p2, in.p2, g);
     const auto [px, py, pz] = interpolate(w0, b1, b2, p0, p1, p2);
-    store(block.point, g, px, py, pz);
+    lm::store(block.point, g, Xyz{px, py, pz});
     const D4 e1x = p1.x - p0.x, e1y = p1.y - p0.y, e1z = p1.z - p0.z;
     const D4 e2x = p2.x - p0.x, e2y = p2.y - p0.y, e2z = p2.z - p0.z;
     const D4 e3x = p2.x - p1.x, e3y = p2.y - p1.y, e3z = p2.z - p1.z;
@@ -95,7 +79,7 @@ void surfaces(const Gathered& in, const OriginPolicy& policy, Lanes& block) {
     const M4 has_area = area2 > zero;
     const D4 gx = lm::select(has_area, cx / area2, zero), gy = lm::select(has_area, cy / area2, zero),
              gz = lm::select(has_area, cz / area2, zero);
-    store(block.geometric_normal, g, gx, gy, gz);
+    lm::store(block.geometric_normal, g, Xyz{gx, gy, gz});
     const D4 l1 = lm::sqrt(e1x * e1x + e1y * e1y + e1z * e1z);
     const D4 l2 = lm::sqrt(e2x * e2x + e2y * e2y + e2z * e2z);
     const D4 l3 = lm::sqrt(e3x * e3x + e3y * e3y + e3z * e3z);
@@ -107,28 +91,28 @@ void surfaces(const Gathered& in, const OriginPolicy& policy, Lanes& block) {
                                                 (lm::broadcast(4.0) + lm::broadcast(2.0) * kappa) * longest));
 
     Xyz n0, n1, n2, d;
-    load(n0, in.n0, g);
-    load(n1, in.n1, g);
-    load(n2, in.n2, g);
-    load(d, in.d, g);
+    lm::load(n0, in.n0, g);
+    lm::load(n1, in.n1, g);
+    lm::load(n2, in.n2, g);
+    lm::load(d, in.d, g);
     const auto [nx, ny, nz] = interpolate(w0, b1, b2, n0, n1, n2);
     const D4 n_scale = one / lm::sqrt(nx * nx + ny * ny + nz * nz);
     const D4 d_scale = one / lm::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
     const D4 ux = d.x * d_scale, uy = d.y * d_scale, uz = d.z * d_scale;
-    store(block.direction, g, ux, uy, uz);
+    lm::store(block.direction, g, Xyz{ux, uy, uz});
     // A two-sided surface seen from behind: dot(geometric normal, to_eye) < 0, to_eye = -direction.
     const D4 facing = gx * -ux + gy * -uy + gz * -uz;
     M4 flip;
     lm::load(flip, in.flip + g);
     const D4 sign = lm::select(flip & (facing < zero), lm::broadcast(-1.0), one);  // -x is x * -1 exactly
     const D4 sx = sign * (nx * n_scale), sy = sign * (ny * n_scale), sz = sign * (nz * n_scale);
-    store(block.normal, g, sx, sy, sz);
+    lm::store(block.normal, g, Xyz{sx, sy, sz});
 
     if (!block.reflections) continue;
     // The reflection ray: reflect_direction and offset_ray_origin.
     const D4 twice = lm::broadcast(2.0) * (ux * sx + uy * sy + uz * sz);
     const D4 rx = ux - twice * sx, ry = uy - twice * sy, rz = uz - twice * sz;
-    store(block.reflected, g, rx, ry, rz);
+    lm::store(block.reflected, g, Xyz{rx, ry, rz});
     set_origins(block, g, gx * rx + gy * ry + gz * rz, policy, block.reflection_origin);
   }
 }
@@ -146,7 +130,7 @@ void light(const LightLanes& light, const OriginPolicy& policy, const Lanes& blo
     M4 on_point{};
     if (!light.directional) {
       Xyz p;
-      load(p, block.point, g);
+      lm::load(p, block.point, g);
       const D4 ox = lm::broadcast(light.position[0]) - p.x, oy = lm::broadcast(light.position[1]) - p.y,
                oz = lm::broadcast(light.position[2]) - p.z;
       const D4 distance = lm::sqrt(ox * ox + oy * oy + oz * oz);
@@ -167,12 +151,12 @@ void light(const LightLanes& light, const OriginPolicy& policy, const Lanes& blo
       }
     }
     lm::store(out.on_point + g, on_point);
-    store(out.to_light, g, lx, ly, lz);
-    store(intensity, g, ir, ig, ib);
+    lm::store(out.to_light, g, Xyz{lx, ly, lz});
+    lm::store(intensity, g, Xyz{ir, ig, ib});
     Xyz n, d, gn;
-    load(n, block.normal, g);
-    load(d, block.direction, g);
-    load(gn, block.geometric_normal, g);
+    lm::load(n, block.normal, g);
+    lm::load(d, block.direction, g);
+    lm::load(gn, block.geometric_normal, g);
     lm::store(n_dot_l.v + g, lm::max(n.x * lx + n.y * ly + n.z * lz, zero));
     if (block.highlights) {  // else n_dot_h is never read
       const D4 hx = lx + -d.x, hy = ly + -d.y, hz = lz + -d.z;
@@ -218,15 +202,16 @@ void terms(const Lanes& block, const Vec3Lanes<kLanes>& intensity, const LaneArr
     lm::load(ndl, n_dot_l.v + g);
     lm::load(pw, power.v + g);
     Xyz in, ambient, diffuse, specular;
-    load(in, intensity, g);
-    load(ambient, block.ambient, g);
-    load(diffuse, block.diffuse, g);
-    load(specular, block.specular, g);
+    lm::load(in, intensity, g);
+    lm::load(ambient, block.ambient, g);
+    lm::load(diffuse, block.diffuse, g);
+    lm::load(specular, block.specular, g);
     const D4 hr = lm::select(highlight, specular.x * pw, zero),
              hg = lm::select(highlight, specular.y * pw, zero),
              hb = lm::select(highlight, specular.z * pw, zero);
-    store(out.term, g, in.x * (ambient.x + diffuse.x * ndl + hr), in.y * (ambient.y + diffuse.y * ndl + hg),
-          in.z * (ambient.z + diffuse.z * ndl + hb));
+    lm::store(out.term, g,
+              Xyz{in.x * (ambient.x + diffuse.x * ndl + hr), in.y * (ambient.y + diffuse.y * ndl + hg),
+                  in.z * (ambient.z + diffuse.z * ndl + hb)});
   }
 }
 

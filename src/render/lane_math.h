@@ -249,6 +249,51 @@ RT_LANE_INLINE F4 round_away(const D4& p, const D4& away) {
   return _mm_castsi128_ps(_mm_add_epi32(bits, _mm_and_si128(_mm_or_si128(up, down), step)));
 }
 
+// Three-vectors of lanes (world space, double) and glm's operations on them, with glm's order of
+// operations. Xyz's layout differs between the implementations, so it lives in each one's inline
+// namespace.
+#ifdef __AVX2__
+inline namespace avx2 {
+#else
+inline namespace sse2 {
+#endif
+
+struct Xyz {
+  D4 x, y, z;
+};
+
+// Lanes g..g+3 of a structure of arrays `v` (v.x.v, v.y.v, v.z.v: double arrays), and back.
+template <class Lanes3>
+RT_LANE_INLINE void load(Xyz& out, const Lanes3& v, int g) {
+  load(out.x, v.x.v + g);
+  load(out.y, v.y.v + g);
+  load(out.z, v.z.v + g);
+}
+template <class Lanes3>
+RT_LANE_INLINE void store(Lanes3& to, int g, const Xyz& v) {
+  store(to.x.v + g, v.x);
+  store(to.y.v + g, v.y);
+  store(to.z.v + g, v.z);
+}
+
+// glm::dot: (a.x b.x + a.y b.y) + a.z b.z.
+RT_LANE_INLINE D4 dot(const Xyz& a, const Xyz& b) {
+  return a.x * b.x + a.y * b.y + a.z * b.z;
+}
+
+// glm::cross.
+RT_LANE_INLINE Xyz cross(const Xyz& a, const Xyz& b) {
+  return {a.y * b.z - b.y * a.z, a.z * b.x - b.z * a.x, a.x * b.y - b.x * a.y};
+}
+
+// glm::normalize: v times 1 / sqrt(v . v).
+RT_LANE_INLINE Xyz normalize(const Xyz& v) {
+  const D4 scale = broadcast(1.0) / sqrt(dot(v, v));
+  return {v.x * scale, v.y * scale, v.z * scale};
+}
+
+}  // namespace avx2 or sse2
+
 #undef RT_LANE_INLINE
 
 }  // namespace rt::lane_math

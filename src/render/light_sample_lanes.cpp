@@ -20,10 +20,11 @@ namespace baseline {
 namespace lm = lane_math;
 using lm::D4;
 using lm::M4;
+using lm::cross;
+using lm::dot;
+using lm::normalize;
 
-struct Xyz {
-  D4 x, y, z;
-};
+using lm::Xyz;
 
 [[gnu::always_inline]] static inline D4 at(const Lanes& v, int g) {
   D4 out;
@@ -32,29 +33,9 @@ struct Xyz {
 }
 
 [[gnu::always_inline]] static inline Xyz at(const Vec3& v, int g) {
-  return {at(v.x, g), at(v.y, g), at(v.z, g)};
-}
-
-[[gnu::always_inline]] static inline void store(Vec3& to, int g, const Xyz& v) {
-  lm::store(to.x.v + g, v.x);
-  lm::store(to.y.v + g, v.y);
-  lm::store(to.z.v + g, v.z);
-}
-
-// glm::dot: (a.x b.x + a.y b.y) + a.z b.z.
-[[gnu::always_inline]] static inline D4 dot(const Xyz& a, const Xyz& b) {
-  return a.x * b.x + a.y * b.y + a.z * b.z;
-}
-
-// glm::cross.
-[[gnu::always_inline]] static inline Xyz cross(const Xyz& a, const Xyz& b) {
-  return {a.y * b.z - b.y * a.z, a.z * b.x - b.z * a.x, a.x * b.y - b.x * a.y};
-}
-
-// glm::normalize: v times 1 / sqrt(v . v).
-[[gnu::always_inline]] static inline Xyz normalize(const Xyz& v) {
-  const D4 scale = lm::broadcast(1.0) / lm::sqrt(dot(v, v));
-  return {v.x * scale, v.y * scale, v.z * scale};
+  Xyz out;
+  lm::load(out, v, g);
+  return out;
 }
 
 // a s + b t, component by component.
@@ -112,7 +93,7 @@ void sample(const Input& in, int count, Output& out) {
     const D4 w0 = one - b1 - b2;
     const Xyz p{w0 * p0.x + b1 * p1.x + b2 * p2.x, w0 * p0.y + b1 * p1.y + b2 * p2.y,
                 w0 * p0.z + b1 * p1.z + b2 * p2.z};
-    store(out.point, g, p);
+    lm::store(out.point, g, p);
     const D4 largest = lm::max(lm::max(lm::abs(p.x), lm::abs(p.y)), lm::abs(p.z));
     lm::store(out.error_bound.v + g, lm::broadcast(ray_offset_detail::kScaledRoundoff) *
                                          (lm::broadcast(std::sqrt(3.0)) * largest + at(in.edge_term, g)));
@@ -122,7 +103,7 @@ void sample(const Input& in, int count, Output& out) {
     const D4 distance = lm::sqrt(dot(offset, offset));
     valid = valid & (distance > zero);
     lm::store(out.distance.v + g, distance);
-    store(out.direction, g, {offset.x / distance, offset.y / distance, offset.z / distance});
+    lm::store(out.direction, g, Xyz{offset.x / distance, offset.y / distance, offset.z / distance});
     lm::store(out.valid + g, valid);
   }
 }

@@ -51,8 +51,9 @@ class ScopedFlushDenormals {
 // the scalar shading path, so only one pixel in `stride` is timed, on diagonals ((x + 3 y) % stride
 // == 0, stride a power of two) so that every row and column is sampled. The stride keeps about
 // kTimedPixels pixels timed, enough for the shares of render time per ray kind: 8 below 256², 256
-// from 1024². At 1 in 8 on a 1024² image, --stats made the diffuse torus's render 7%
-// slower; at 1 in 256, 2-4%, about half of it the timestamps around every packet.
+// from 1024². Timestamps are read only in blocks that hold a timed pixel. At 1 in 8, with
+// timestamps around every packet, --stats made the 1024² diffuse torus's render 7% slower; now
+// about 1.5% (docs/performance.md).
 constexpr std::int64_t kTimedPixels = 4096;
 int timing_stride(int width, int height) {
   const std::int64_t pixels = std::int64_t(width) * std::int64_t(height);

@@ -222,6 +222,9 @@ template <class Shadows>
            to_string(rule));
   };
   SideOrigins origins{context.ray_offset, lit.surface};
+  // The pattern's points and their light samples, drawn together a chunk at a time.
+  std::array<Vec2d, 16> points;
+  std::array<LightSample, points.size()> drawn;
   for (std::size_t e = 0; e < area_lights.emitters.size(); ++e) {
     const Emitter& emitter = area_lights.emitters[e];
     const std::size_t slot = context.scene.lights.size() + e;
@@ -243,9 +246,6 @@ template <class Shadows>
     }
     const auto pattern = static_cast<std::uint32_t>(mix64(path_seed ^ mix64((std::uint64_t(depth) << 32) + e)));
     EmitterSampler sampler(emitter, context.flat, context.scene, context.textures, point, plan.options.light_sampling);
-    // The pattern's points and their light samples, drawn together a chunk at a time.
-    std::array<Vec2d, 16> points;
-    std::array<LightSample, points.size()> drawn;
     for (std::uint32_t k = 0; k < samples; ++k) {
       if (k % points.size() == 0) {
         const auto chunk = std::span(points).first(std::min<std::size_t>(points.size(), samples - k));
