@@ -167,6 +167,19 @@ TEST_CASE("PixelCentreRays gives ray_through_pixel's rays bit for bit", "[camera
         different += std::memcmp(&ray, &expected, sizeof ray) != 0;
       }
     CHECK(different == 0);
+    // set_rays4: four neighbours along a row at once, at every start column that fits.
+    int different4 = 0;
+    for (int j = 0; j < height; ++j)
+      for (int i = 0; i + 4 <= width; ++i) {
+        rt::Ray rays[4];
+        for (rt::Ray& r : rays) r.tnear = 1.0f;
+        centre_rays.set_rays4(rays, i, j);
+        for (int k = 0; k < 4; ++k) {
+          const rt::Ray expected = rt::ray_through_pixel(frame, i + k, j);
+          different4 += std::memcmp(&rays[k], &expected, sizeof expected) != 0;
+        }
+      }
+    CHECK(different4 == 0);
   }
 }
 

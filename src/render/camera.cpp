@@ -8,6 +8,7 @@
 
 #include "rt/core/error.h"
 #include "rt/render/sampling.h"
+#include "lane_math.h"
 
 namespace rt {
 
@@ -42,11 +43,40 @@ PixelCentreRays::PixelCentreRays(const CameraFrame& frame) : eye_(frame.eye), w_
   // As camera_direction at x = i + 0.5, y = j + 0.5, term by term.
   for (int i = 0; i < frame.width; ++i) {
     const double alpha = 2.0 * (i + 0.5) / frame.width - 1.0;
-    across_.push_back(alpha * frame.aspect * frame.tan_half_fovy * frame.u);
+    const Vec3d across = alpha * frame.aspect * frame.tan_half_fovy * frame.u;
+    across_x_.push_back(across.x);
+    across_y_.push_back(across.y);
+    across_z_.push_back(across.z);
   }
   for (int j = 0; j < frame.height; ++j) {
     const double beta = 1.0 - 2.0 * (j + 0.5) / frame.height;
     down_.push_back(beta * frame.tan_half_fovy * frame.v);
+  }
+}
+
+void PixelCentreRays::set_rays4(Ray* rays, int i, int j) const {
+  namespace lm = lane_math;
+  // glm's operations: (across + down) - w, dot(v, v) = (x x + y y) + z z, normalize(v) =
+  // v * (1 / sqrt(dot(v, v))).
+  const Vec3d& down = down_[std::size_t(j)];
+  lm::D4 x, y, z;
+  lm::load(x, across_x_.data() + i);
+  lm::load(y, across_y_.data() + i);
+  lm::load(z, across_z_.data() + i);
+  x = (x + lm::broadcast(down.x)) - lm::broadcast(w_.x);
+  y = (y + lm::broadcast(down.y)) - lm::broadcast(w_.y);
+  z = (z + lm::broadcast(down.z)) - lm::broadcast(w_.z);
+  const lm::D4 scale = lm::broadcast(1.0) / lm::sqrt((x * x + y * y) + z * z);
+  alignas(16) float dx[4], dy[4], dz[4];
+  _mm_store_ps(dx, lm::to_float(x * scale));
+  _mm_store_ps(dy, lm::to_float(y * scale));
+  _mm_store_ps(dz, lm::to_float(z * scale));
+  for (int k = 0; k < 4; ++k) {
+    Ray& ray = rays[k];
+    ray.origin.x = eye_.x, ray.origin.y = eye_.y, ray.origin.z = eye_.z;
+    ray.direction.x = dx[k], ray.direction.y = dy[k], ray.direction.z = dz[k];
+    ray.tnear = 0.0f;
+    ray.tfar = kInfinity;
   }
 }
 

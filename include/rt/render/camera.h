@@ -40,17 +40,22 @@ class PixelCentreRays {
   // Writes the ray through pixel (i, j) into `ray` field by field (building a Ray and copying it
   // stalled store forwarding on every pixel).
   void set_ray(Ray& ray, int i, int j) const {
-    const Vec3d d = glm::normalize(across_[std::size_t(i)] + down_[std::size_t(j)] - w_);
+    const Vec3d d = glm::normalize(Vec3d(across_x_[std::size_t(i)], across_y_[std::size_t(i)],
+                                         across_z_[std::size_t(i)]) + down_[std::size_t(j)] - w_);
     ray.origin.x = eye_.x, ray.origin.y = eye_.y, ray.origin.z = eye_.z;
     ray.direction.x = float(d.x), ray.direction.y = float(d.y), ray.direction.z = float(d.z);
     ray.tnear = 0.0f;
     ray.tfar = kInfinity;
   }
+  // set_ray for the four pixels (i .. i + 3, j) into rays[0 .. 3] (i + 3 < width), in SIMD lanes
+  // with the same operations in the same order: the same rays bit for bit.
+  void set_rays4(Ray* rays, int i, int j) const;
 
  private:
   Vec3f eye_;
   Vec3d w_;
-  std::vector<Vec3d> across_, down_;  // per column i, per row j (world space, double)
+  std::vector<double> across_x_, across_y_, across_z_;  // per column i (world space, double)
+  std::vector<Vec3d> down_;  // per row j (world space, double)
 };
 
 // Where sample `index` of `count` (count >= 1) falls inside pixel (i, j), as an offset in
