@@ -61,8 +61,7 @@ int timing_stride(int width, int height) {
   while (stride < 256 && pixels / (2 * stride) >= kTimedPixels) stride *= 2;
   return stride;
 }
-// A mask, not %: the stride is a power of two, and a division per pixel cost --stats about 1% of
-// the render.
+// A mask, not %: the stride is a power of two, and this runs for every pixel under --stats.
 bool is_timing_sample(int x, int y, int stride) { return ((x + 3 * y) & (stride - 1)) == 0; }
 
 // A block's recorded shadow rays (PendingShading::shadow_rays, world space) traced as packets,
