@@ -78,11 +78,26 @@ BatchShader::BatchShader(const ShadingContext& context)
     plain.emission = Vec3d(material.emission);
     enabled_ = enabled_ || plain.batched;
   }
+  const std::vector<std::uint32_t>& ids = context.flat.material_ids;
+  for (std::size_t t = 0; t < ids.size() && run_first_.size() <= kMaxRuns; ++t)
+    if (t == 0 || ids[t] != ids[t - 1]) {
+      run_first_.push_back(static_cast<std::uint32_t>(t));
+      run_material_.push_back(ids[t]);
+    }
+  if (run_first_.size() > kMaxRuns) run_first_.clear(), run_material_.clear();
+}
+
+std::uint32_t BatchShader::material_of_triangle(std::uint32_t triangle) const {
+  if (run_first_.empty()) return context_.flat.material_ids[triangle];
+  std::uint32_t material = run_material_[0];
+  for (std::size_t r = 1; r < run_first_.size(); ++r)
+    if (triangle >= run_first_[r]) material = run_material_[r];
+  return material;
 }
 
 bool BatchShader::batchable(const Hit& hit) const {
   const FlatScene& flat = context_.flat;
-  return hit.found() && !flat.is_sphere(hit.primitive) && materials_[flat.material_ids[hit.primitive]].batched;
+  return hit.found() && !flat.is_sphere(hit.primitive) && materials_[material_of_triangle(hit.primitive)].batched;
 }
 
 void BatchShader::compute_lanes(Lanes& lanes, const std::array<Ray, kLanes>& rays,
@@ -115,7 +130,7 @@ void BatchShader::prefetch_triangles(std::span<const Hit> hits) const {
   for (const Hit& hit : hits)
     if (hit.found()) {
       __builtin_prefetch(&context_.flat.triangles[hit.primitive]);
-      __builtin_prefetch(&context_.flat.material_ids[hit.primitive]);
+      if (run_first_.empty()) __builtin_prefetch(&context_.flat.material_ids[hit.primitive]);
     }
 }
 
@@ -157,7 +172,7 @@ void BatchShader::compute_surfaces(Lanes& block, const std::array<Ray, kLanes>& 
     put(in.d, rays[std::size_t(i)].direction);
     in.b1.v[i] = hit.u;
     in.b2.v[i] = hit.v;
-    const std::uint32_t material = flat.material_ids[hit.primitive];
+    const std::uint32_t material = material_of_triangle(hit.primitive);
     block.material[std::size_t(i)] = material;
     const PlainMaterial& plain = materials_[material];
     in.flip[i] = plain.flip_back_face ? -1 : 0;
