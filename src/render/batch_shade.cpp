@@ -20,9 +20,16 @@ namespace {
 using batch_lanes::Gathered;
 using batch_lanes::LightLanes;
 
-void count_at(std::vector<std::uint64_t>& counts, std::size_t index) {
-  if (counts.size() <= index) counts.resize(index + 1, 0);
+// ++counts[index], the vector grown first if needed (once per depth per thread: out of line).
+[[gnu::noinline, gnu::cold]] void grow_and_count(std::vector<std::uint64_t>& counts, std::size_t index) {
+  counts.resize(index + 1, 0);
   ++counts[index];
+}
+[[gnu::always_inline]] inline void count_at(std::vector<std::uint64_t>& counts, std::size_t index) {
+  if (index < counts.size()) [[likely]]
+    ++counts[index];
+  else
+    grow_and_count(counts, index);
 }
 
 double max_channel(const Vec3d& c) { return std::max({c.r, c.g, c.b}); }
