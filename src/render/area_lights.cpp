@@ -186,9 +186,16 @@ EmitterSampler::View EmitterSampler::view_of(const EmitterTriangle& t) const {
 
 [[gnu::always_inline]] inline EmitterSampler::Choice EmitterSampler::choose(double uy) const {
   const std::vector<double>& cdf = emitter_.cdf;
-  const auto it = std::upper_bound(cdf.begin(), cdf.end(), uy);
+  // std::upper_bound's index: the number of entries c with !(uy < c), the cdf being sorted. A few
+  // entries (a quad light has two) are counted without branches: uy is random, so a search's
+  // branches are mispredicted about half the time.
+  std::size_t index = 0;
+  if (cdf.size() <= 16)
+    for (const double c : cdf) index += uy < c ? 0 : 1;
+  else
+    index = std::size_t(std::upper_bound(cdf.begin(), cdf.end(), uy) - cdf.begin());
   Choice choice;
-  choice.triangle = std::min(std::size_t(it - cdf.begin()), cdf.size() - 1);
+  choice.triangle = std::min(index, cdf.size() - 1);
   const double low = choice.triangle > 0 ? cdf[choice.triangle - 1] : 0.0;
   choice.probability = cdf[choice.triangle] - low;
   choice.v = std::clamp((uy - low) / choice.probability, 0.0, 1.0 - 0x1p-53);
