@@ -272,10 +272,14 @@ void EmitterSampler::sample_many(std::span<const Vec2d> u, std::span<LightSample
     const int count = static_cast<int>(std::min<std::size_t>(lanes::kLanes, u.size() - first));
     // Gather each lane's triangle and warp; the lanes past `count` up to a multiple of 4 repeat
     // the last one.
-    for (int k = 0; k < (count + 3) / 4 * 4; ++k) {
-      const int from = std::min(k, count - 1);
-      const Vec2d uk = u[first + std::size_t(from)];
-      const Choice choice = choices[std::size_t(k)] = choose(uk.y);
+    const int padded = (count + 3) / 4 * 4;
+    // The choices first, in a loop of their own: their divisions overlap instead of each one
+    // stalling the lane that needs it (and a choice read back right after it was written stalled
+    // store forwarding).
+    for (int k = 0; k < padded; ++k) choices[std::size_t(k)] = choose(u[first + std::size_t(std::min(k, count - 1))].y);
+    for (int k = 0; k < padded; ++k) {
+      const Vec2d uk = u[first + std::size_t(std::min(k, count - 1))];
+      const Choice& choice = choices[std::size_t(k)];
       View* spill = uncached_.empty() ? nullptr : &uncached_[std::size_t(k)];  // read past the cache only
       const View& seen = *(views[std::size_t(k)] = &view(choice.triangle, spill));
       const EmitterTriangle& t = emitter_.triangles[choice.triangle];
