@@ -276,9 +276,10 @@ void EmitterSampler::sample_many(std::span<const Vec2d> u, std::span<LightSample
     // The choices first, in a loop of their own: their divisions overlap instead of each one
     // stalling the lane that needs it (and a choice read back right after it was written stalled
     // store forwarding).
-    for (int k = 0; k < padded; ++k) choices[std::size_t(k)] = choose(u[first + std::size_t(std::min(k, count - 1))].y);
+    const auto u_of = [&](int k) { return u[first + std::size_t(std::min(k, count - 1))]; };
+    for (int k = 0; k < padded; ++k) choices[std::size_t(k)] = choose(u_of(k).y);
     for (int k = 0; k < padded; ++k) {
-      const Vec2d uk = u[first + std::size_t(std::min(k, count - 1))];
+      const Vec2d uk = u_of(k);
       const Choice& choice = choices[std::size_t(k)];
       View* spill = uncached_.empty() ? nullptr : &uncached_[std::size_t(k)];  // read past the cache only
       const View& seen = *(views[std::size_t(k)] = &view(choice.triangle, spill));

@@ -144,7 +144,7 @@ class BatchShader {
     Vec3d ambient{0.0}, diffuse{0.0}, specular{0.0}, reflective{0.0}, emission{0.0};
   };
   bool batchable(const Hit& hit) const;
-  // FlatScene::material_ids[triangle], from material_runs_ when the scene has few runs.
+  // FlatScene::material_ids[triangle], from the runs below when the scene has few of them.
   std::uint32_t material_of_triangle(std::uint32_t triangle) const;
   // A cache hint for the triangle indices and materials that compute_surfaces gathers for `hits`.
   void prefetch_triangles(std::span<const Hit> hits) const;
