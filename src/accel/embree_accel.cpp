@@ -53,6 +53,18 @@ void fill_ray(const Ray& ray, RTCRay& out) {
   out.flags = 0;
 }
 
+// Whether Embree may be given `ray`. Embree 3.13 asserts RayK::valid() (every origin and direction
+// coordinate within +-FLT_LARGE = 1.844e18, tnear and tfar not NaN) and tnear >= 0 on every query,
+// and Debian builds it with assertions on: such a ray would abort the process. One that fails
+// (a NaN from a degenerate computation upstream) hits nothing and is blocked by nothing instead.
+bool embree_accepts(const Ray& ray) {
+  constexpr float kLargest = 1.844E18f;  // Embree's FLT_LARGE (common/math/constants.h)
+  const auto within = [](const Vec3f& v) {
+    return std::abs(v.x) <= kLargest && std::abs(v.y) <= kLargest && std::abs(v.z) <= kLargest;
+  };
+  return within(ray.origin) && within(ray.direction) && ray.tnear >= 0.0f && !std::isnan(ray.tfar);
+}
+
 // Lane `lane` of a 16-ray packet, as fill_ray fills a single ray.
 void fill_packet_lane(const Ray& ray, unsigned lane, RTCRay16& out) {
   out.org_x[lane] = ray.origin.x;
@@ -747,6 +759,8 @@ Hit to_hit(const BestHit& best) {
 }  // namespace
 
 Hit EmbreeAccel::intersect(const Ray& ray) const {
+  if (!embree_accepts(ray)) [[unlikely]]
+    return Hit{};
   BestHit best = no_hit_yet(ray);
   ShearedRay sheared;
   if (impl_->shear) shear_ray(ray.origin, ray.direction, sheared);
@@ -781,8 +795,8 @@ void EmbreeAccel::intersect_coherent(std::span<const Ray> rays, std::span<Hit> h
     alignas(64) int valid[kPacketSize];
     for (unsigned i = 0; i < kPacketSize; ++i) {
       const bool active = i < lanes;
-      valid[i] = active ? -1 : 0;
       const Ray& ray = rays[first + (active ? i : 0)];
+      valid[i] = active && embree_accepts(ray) ? -1 : 0;
       best[i] = no_hit_yet(ray);
       if (impl_->shear) shear_ray(ray.origin, ray.direction, sheared[i]);
       fill_packet_lane(ray, i, packet.ray);
@@ -808,8 +822,8 @@ void EmbreeAccel::occluded_coherent(std::span<const Ray> rays, std::span<std::ui
     alignas(64) RTCRay16 packet;
     alignas(64) int valid[kPacketSize];
     for (unsigned i = 0; i < kPacketSize; ++i) {
-      valid[i] = i < lanes ? -1 : 0;
       const Ray& ray = rays[first + (i < lanes ? i : 0)];
+      valid[i] = i < lanes && embree_accepts(ray) ? -1 : 0;
       if (impl_->shear) shear_ray(ray.origin, ray.direction, sheared[i]);
       fill_packet_lane(ray, i, packet);
     }
@@ -819,6 +833,8 @@ void EmbreeAccel::occluded_coherent(std::span<const Ray> rays, std::span<std::ui
 }
 
 bool EmbreeAccel::occluded(const Ray& ray) const {
+  if (!embree_accepts(ray)) [[unlikely]]
+    return false;
   ShearedRay sheared;
   if (impl_->shear) shear_ray(ray.origin, ray.direction, sheared);
   ShadowContext context{{}, &sheared};

@@ -96,7 +96,10 @@ void surfaces(const Gathered& in, const OriginPolicy& policy, Lanes& block) {
     lm::load(n2, in.n2, g);
     lm::load(d, in.d, g);
     const auto [nx, ny, nz] = interpolate(w0, b1, b2, n0, n1, n2);
-    const D4 n_scale = one / lm::sqrt(nx * nx + ny * ny + nz * nz);
+    // shading_normal: normalised, or the geometric normal where the vertex normals cancel to zero.
+    const D4 n_length2 = nx * nx + ny * ny + nz * nz;
+    const M4 has_normal = n_length2 > zero;
+    const D4 n_scale = one / lm::sqrt(n_length2);
     const D4 d_scale = one / lm::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
     const D4 ux = d.x * d_scale, uy = d.y * d_scale, uz = d.z * d_scale;
     lm::store(block.direction, g, Xyz{ux, uy, uz});
@@ -105,7 +108,8 @@ void surfaces(const Gathered& in, const OriginPolicy& policy, Lanes& block) {
     M4 flip;
     lm::load(flip, in.flip + g);
     const D4 sign = lm::select(flip & (facing < zero), lm::broadcast(-1.0), one);  // -x is x * -1 exactly
-    const D4 sx = sign * (nx * n_scale), sy = sign * (ny * n_scale), sz = sign * (nz * n_scale);
+    const D4 sx = sign * lm::select(has_normal, nx * n_scale, gx), sy = sign * lm::select(has_normal, ny * n_scale, gy),
+             sz = sign * lm::select(has_normal, nz * n_scale, gz);
     lm::store(block.normal, g, Xyz{sx, sy, sz});
 
     if (!block.reflections) continue;

@@ -393,8 +393,9 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
     const Vec3d p0(flat.positions[tri.x]), p1(flat.positions[tri.y]), p2(flat.positions[tri.z]);
     const double b1 = hit.u, b2 = hit.v, b0 = 1.0 - b1 - b2;
     surface = make_surface_point(p0, p1, p2, b1, b2);
-    normal = glm::normalize(b0 * Vec3d(flat.normals[tri.x]) + b1 * Vec3d(flat.normals[tri.y]) +
-                            b2 * Vec3d(flat.normals[tri.z]));
+    normal = shading_normal(b0 * Vec3d(flat.normals[tri.x]) + b1 * Vec3d(flat.normals[tri.y]) +
+                                b2 * Vec3d(flat.normals[tri.z]),
+                            surface.geometric_normal);
     if (has_texcoords(flat)) texcoord = texcoords_at(flat, hit.primitive, float(b0), float(b1), float(b2));
   }
   const Vec3d& point = surface.point;

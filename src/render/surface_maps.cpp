@@ -94,11 +94,11 @@ void apply_surface_maps(const FlatScene& flat, const TextureSampler* textures, s
   const bool normal_mapped = sampled && !flat.tangents.empty() && textures->has(material_id, TextureRole::normal);
   if (normal_mapped) {
     const Vec4d tangent = interpolate(flat.tangents);
-    if (Vec3d(tangent) != Vec3d(0.0)) {
-      const Vec3d normal = b0 * Vec3d(flat.normals[tri.x]) + b1 * Vec3d(flat.normals[tri.y]) + b2 * Vec3d(flat.normals[tri.z]);
+    const Vec3d normal = b0 * Vec3d(flat.normals[tri.x]) + b1 * Vec3d(flat.normals[tri.y]) + b2 * Vec3d(flat.normals[tri.z]);
+    // Without a tangent frame (no tangent, or vertex normals that cancel) the unmapped normal stays.
+    if (Vec3d(tangent) != Vec3d(0.0) && glm::dot(normal, normal) > 0.0)
       terms.normal = normal_from_map(*sample(TextureRole::normal), material.normal_scale, normal, Vec3d(tangent),
                                      tangent.w < 0.0 ? -1.0 : 1.0);
-    }
   } else if (sampled && textures->has(material_id, TextureRole::bump)) {
     terms.normal = bumped_normal(flat, *textures, material_id, material, hit.primitive, *texcoord, terms.normal);
   }

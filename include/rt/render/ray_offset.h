@@ -7,6 +7,8 @@
 #include <string>
 #include <string_view>
 
+#include <glm/geometric.hpp>
+
 #include "rt/accel/accel.h"
 
 namespace rt {
@@ -37,6 +39,14 @@ struct SurfacePoint {
 // origin near that point is (see the derivation in ray_offset.cpp). A zero-area triangle gets a
 // zero normal.
 SurfacePoint make_surface_point(const Vec3d& p0, const Vec3d& p1, const Vec3d& p2, double b1, double b2);
+
+// The unit shading normal at a hit from its interpolated vertex normal (world space, double):
+// `interpolated` normalised, or the surface's geometric normal where opposite vertex normals cancel
+// to zero, as in pbrt-v4's Triangle::InteractionFromIntersection. Normalising zero would give NaN,
+// and a ray leaving along it makes Debian's Embree, built with assertions, abort the process.
+inline Vec3d shading_normal(const Vec3d& interpolated, const Vec3d& geometric_normal) {
+  return glm::dot(interpolated, interpolated) > 0.0 ? glm::normalize(interpolated) : geometric_normal;
+}
 
 // What make_surface_point derives from the triangle alone, for a triangle whose points are made many
 // times (an emitter's light samples): its geometric normal and the edge part of the error bound.
