@@ -81,6 +81,14 @@ void fill_packet_lane(const Ray& ray, unsigned lane, RTCRay16& out) {
   out.flags[lane] = 0;
 }
 
+// Lane `lane` of a 16-ray packet as a lane the query must skip: besides its 0 in the valid mask,
+// an empty segment (tnear 1 > tfar 0) of a ray Embree accepts. On a CPU without 16-wide kernels
+// (AVX2, no AVX-512) Embree 3.13 splits a 16-ray packet by its stream code, which ignores the
+// mask and traces every lane with tnear <= tfar, asserting each one valid.
+void fill_packet_lane_off(unsigned lane, RTCRay16& out) {
+  fill_packet_lane(Ray{Vec3f(0.0f), Vec3f(0.0f, 0.0f, 1.0f), 1.0f, 0.0f}, lane, out);
+}
+
 RTCBuildQuality to_embree(EmbreeQuality quality) {
   switch (quality) {
     case EmbreeQuality::low: return RTC_BUILD_QUALITY_LOW;
@@ -794,10 +802,14 @@ void EmbreeAccel::intersect_coherent(std::span<const Ray> rays, std::span<Hit> h
     alignas(64) RTCRayHit16 packet;
     alignas(64) int valid[kPacketSize];
     for (unsigned i = 0; i < kPacketSize; ++i) {
-      const bool active = i < lanes;
-      const Ray& ray = rays[first + (active ? i : 0)];
-      valid[i] = active && embree_accepts(ray) ? -1 : 0;
+      const Ray& ray = rays[first + (i < lanes ? i : 0)];
+      const bool on = i < lanes && embree_accepts(ray);
+      valid[i] = on ? -1 : 0;
       best[i] = no_hit_yet(ray);
+      if (!on) {
+        fill_packet_lane_off(i, packet.ray);
+        continue;
+      }
       if (impl_->shear) shear_ray(ray.origin, ray.direction, sheared[i]);
       fill_packet_lane(ray, i, packet.ray);
       packet.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
@@ -823,7 +835,12 @@ void EmbreeAccel::occluded_coherent(std::span<const Ray> rays, std::span<std::ui
     alignas(64) int valid[kPacketSize];
     for (unsigned i = 0; i < kPacketSize; ++i) {
       const Ray& ray = rays[first + (i < lanes ? i : 0)];
-      valid[i] = i < lanes && embree_accepts(ray) ? -1 : 0;
+      const bool on = i < lanes && embree_accepts(ray);
+      valid[i] = on ? -1 : 0;
+      if (!on) {
+        fill_packet_lane_off(i, packet);
+        continue;
+      }
       if (impl_->shear) shear_ray(ray.origin, ray.direction, sheared[i]);
       fill_packet_lane(ray, i, packet);
     }
