@@ -291,9 +291,7 @@ void EmitterSampler::sample_many(std::span<const Vec2d> u, std::span<LightSample
       in.by_solid_angle[k] = seen.by_solid_angle ? -1 : 0;
       if (seen.by_solid_angle) {
         const SphericalTriangle& spherical = seen.spherical;
-        const double angle = spherical.warp_angle(uk.x);
-        in.sin_angle.v[k] = std::sin(angle);  // as SphericalTriangle::sample computes them
-        in.cos_angle.v[k] = std::cos(angle);
+        in.angle.v[k] = spherical.warp_angle(uk.x);
         in.v.v[k] = choice.v;
         in.b1.v[k] = in.b2.v[k] = 0.0;  // read but not used
         in.cos_alpha.v[k] = spherical.cos_alpha();
@@ -307,7 +305,7 @@ void EmitterSampler::sample_many(std::span<const Vec2d> u, std::span<LightSample
         in.b1.v[k] = b.y;
         in.b2.v[k] = b.z;
         // The warp's inputs are read but not used: any finite values.
-        in.sin_angle.v[k] = in.cos_angle.v[k] = in.v.v[k] = in.cos_alpha.v[k] = in.sin_alpha.v[k] = in.cos_c.v[k] = 0.0;
+        in.angle.v[k] = in.v.v[k] = in.cos_alpha.v[k] = in.sin_alpha.v[k] = in.cos_c.v[k] = 0.0;
         set(in.a, k, Vec3d(1.0, 0.0, 0.0));
         set(in.b, k, Vec3d(0.0, 1.0, 0.0));
         set(in.c_perp, k, Vec3d(0.0, 0.0, 1.0));

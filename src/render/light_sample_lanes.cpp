@@ -6,6 +6,7 @@
 
 #include <cmath>
 
+#include "lane_libm.h"
 #include "lane_math.h"
 #include "rt/render/ray_offset.h"
 
@@ -43,10 +44,11 @@ using lm::Xyz;
   return {s * a.x + t * b.x, s * a.y + t * b.y, s * a.z + t * b.z};
 }
 
-// SphericalTriangle::sample after its std::sin and std::cos (sampling.cpp).
+// SphericalTriangle::sample (sampling.cpp).
 [[gnu::always_inline]] static inline Xyz arvo_direction(const Input& in, int g) {
   const D4 zero{}, one = lm::broadcast(1.0);
-  const D4 s = at(in.sin_angle, g), t = at(in.cos_angle, g);
+  D4 s, t;
+  lm::sincos(at(in.angle, g), s, t);
   const D4 cos_alpha = at(in.cos_alpha, g), sin_alpha = at(in.sin_alpha, g);
   const D4 uu = t - cos_alpha, vv = s + sin_alpha * at(in.cos_c, g);
   const D4 denominator = (vv * s + uu * t) * sin_alpha;

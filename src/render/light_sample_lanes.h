@@ -1,7 +1,8 @@
 #pragma once
-// EmitterSampler::sample_many's arithmetic over lanes (area_lights.cpp): Arvo's spherical warp after
-// its sine and cosine, the barycentrics where the direction meets the triangle, the sample's surface
-// point and its direction and distance from the shading point. World space, double. Built twice,
+// EmitterSampler::sample_many's arithmetic over lanes (area_lights.cpp): Arvo's spherical warp (its
+// sine and cosine from lane_libm.h, as SphericalTriangle::sample takes them), the barycentrics
+// where the direction meets the triangle, the sample's surface point and its direction and
+// distance from the shading point. World space, double. Built twice,
 // like batch_lanes.cpp: baseline x86-64 and AVX2 (light_sample_lanes_avx2.cpp), chosen once by what
 // the CPU has; each lane takes the scalar code's IEEE operations in the same order, so both builds
 // give SphericalTriangle::sample's, barycentrics_along's and make_surface_point's bits.
@@ -20,10 +21,10 @@ using Vec3 = Vec3Lanes<kLanes>;
 struct Input {
   Input() {}  // not zeroed: every lane in use is written
   double point[3];  // the shading point, the same for every lane
-  // Arvo's warp (SphericalTriangle's members): sine and cosine of u.x * area - alpha, the second
+  // Arvo's warp (SphericalTriangle's members): the angle u.x * area - alpha (radians), the second
   // sample coordinate, the angle at A's cosine and sine, cos of side AB, and the unit vectors A, B
   // and C's part orthogonal to A. Read only where by_solid_angle.
-  Lanes sin_angle, cos_angle, v, cos_alpha, sin_alpha, cos_c;
+  Lanes angle, v, cos_alpha, sin_alpha, cos_c;
   Vec3 a, b, c_perp;
   // The triangle (p0, p1, p2) and make_triangle_frame's edge term.
   Vec3 p0, p1, p2;

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <numbers>
 
+#include "lane_libm.h"
+
 namespace rt {
 
 namespace {
@@ -85,6 +87,18 @@ std::uint32_t permute(std::uint32_t i, std::uint32_t length, std::uint32_t patte
 // The angle between unit vectors, accurate over all of [0, pi] (unlike acos near 0 and pi).
 double angle_between(const Vec3d& a, const Vec3d& b) {
   return std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b));
+}
+
+// sin and cos of `angle` (radians) by the lanes' sincos (lane_libm.h), so that
+// SphericalTriangle::sample gives the bits of EmitterSampler::sample_many's lanes.
+void sincos_as_lanes(double angle, double& sin_angle, double& cos_angle) {
+  lane_math::D4 s, c;
+  lane_math::sincos(lane_math::broadcast(angle), s, c);
+  double lanes[4];
+  lane_math::store(lanes, s);
+  sin_angle = lanes[0];
+  lane_math::store(lanes, c);
+  cos_angle = lanes[0];
 }
 
 // The component of unit-length-or-not `v` orthogonal to unit `axis`, normalised.
@@ -192,8 +206,8 @@ SphericalTriangle::SphericalTriangle(const Vec3d& p, const Vec3d& a, const Vec3d
 Vec3d SphericalTriangle::sample(Vec2d u) const {
   // Arvo's first step: the sub-triangle A, B, C' of area u.x * area puts C' on the arc A C, at
   // cos(angle A C') = q.
-  const double angle = warp_angle(u.x);
-  const double s = std::sin(angle), t = std::cos(angle);
+  double s, t;
+  sincos_as_lanes(warp_angle(u.x), s, t);
   const double uu = t - cos_alpha_, vv = s + sin_alpha_ * cos_c_;
   const double denominator = (vv * s + uu * t) * sin_alpha_;
   const double q = denominator != 0.0 ? std::clamp(((vv * t - uu * s) * cos_alpha_ - vv) / denominator, -1.0, 1.0) : 1.0;
