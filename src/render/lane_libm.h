@@ -2,7 +2,7 @@
 // Elementary functions over four double lanes (lane_math.h's D4), for the area lights' per-sample
 // path: the same IEEE operations in the same order in the SSE2 and the AVX2 build (no FMA), so a
 // lane gives the same bits on every x86-64 CPU, and a scalar caller that puts its argument in a
-// lane (sampling.cpp) gets the lanes' bits. Within a few ulp of glibc, not bit for bit: the error
+// lane (sampling.cpp) gets the lanes' bits. Within 1 ulp of glibc, not bit for bit: the error
 // bounds are asserted in tests/test_area_lights.cpp and what they do to images is in
 // docs/performance.md. The polynomials and the argument reduction are fdlibm's (Sun Microsystems,
 // 1993, freely distributable; as in musl's __sin, __cos and __rem_pio2).
@@ -18,18 +18,6 @@ inline namespace avx2 {
 #else
 inline namespace sse2 {
 #endif
-
-// a == b per lane (ordered: false where either is NaN).
-RT_LANE_INLINE M4 equal(const D4& a, const D4& b) {
-  return ~(a != b);
-}
-
-// Round to the nearest integer, ties to even, for |x| < 2^51: adding and subtracting 1.5 * 2^52
-// leaves no fraction bits (the round-to-nearest of the addition does the rounding).
-RT_LANE_INLINE D4 round_to_integer(const D4& x) {
-  const D4 shift = broadcast(0x1.8p52);
-  return (x + shift) - shift;
-}
 
 // sin(x) and cos(x) for |x| < 2^20 (radians), within 1 ulp of glibc's where the result is not
 // within 1e-9 of zero (there, within 1e-24 absolute). NaN gives NaN.
@@ -67,7 +55,7 @@ RT_LANE_INLINE void sincos(const D4& x, D4& sin_x, D4& cos_x) {
   D4 floor_quarter = round_to_integer(quarter);
   floor_quarter = select(floor_quarter > quarter, floor_quarter - one, floor_quarter);
   const D4 q = n - broadcast(4.0) * floor_quarter;
-  const M4 odd = equal(q, one) | equal(q, broadcast(3.0));
+  const M4 odd = (q == one) | (q == broadcast(3.0));
   const D4 sine = select(odd, c, s), cosine = select(odd, s, c);
   sin_x = select(q > broadcast(1.5), -sine, sine);
   cos_x = select((q > half) & (q < broadcast(2.5)), -cosine, cosine);

@@ -231,6 +231,18 @@ RT_LANE_INLINE D4 clamp(const D4& v, const D4& lo, const D4& hi) {
   return select(v < lo, lo, select(hi < v, hi, v));
 }
 
+// a == b: false where either is NaN, as scalar == is.
+RT_LANE_INLINE M4 operator==(const D4& a, const D4& b) {
+  return ~(a != b);
+}
+
+// Round to the nearest integer, ties to even, for |x| < 2^51: adding and subtracting 1.5 * 2^52
+// leaves no fraction bits (the round-to-nearest of the addition does the rounding).
+RT_LANE_INLINE D4 round_to_integer(const D4& x) {
+  const D4 shift = broadcast(0x1.8p52);
+  return (x + shift) - shift;
+}
+
 // ray_offset_detail::round_away per lane: p rounded to float32 and, where rounding moved it against
 // `away`, one float further along `away`. next_float's step on the bits: +1 moves a positive float
 // (or +0) up and a negative one (or -0) down, -1 the reverse. Rounding lands on +0 only for p > 0

@@ -2,10 +2,10 @@
 // EmitterSampler::sample_many's arithmetic over lanes (area_lights.cpp): Arvo's spherical warp (its
 // sine and cosine from lane_libm.h, as SphericalTriangle::sample takes them), the barycentrics
 // where the direction meets the triangle, the sample's surface point and its direction and
-// distance from the shading point. World space, double. Built twice,
-// like batch_lanes.cpp: baseline x86-64 and AVX2 (light_sample_lanes_avx2.cpp), chosen once by what
-// the CPU has; each lane takes the scalar code's IEEE operations in the same order, so both builds
-// give SphericalTriangle::sample's, barycentrics_along's and make_surface_point's bits.
+// distance from the shading point. World space, double. Built twice, like batch_lanes.cpp:
+// baseline x86-64 and AVX2 (light_sample_lanes_avx2.cpp), chosen once by what the CPU has; each
+// lane takes the scalar code's IEEE operations in the same order, so both builds give
+// SphericalTriangle::sample's, barycentrics_along's and make_surface_point's bits.
 
 #include <cstdint>
 
