@@ -5,8 +5,10 @@
 #include "catch.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <memory>
 #include <numbers>
 #include <random>
@@ -223,7 +225,7 @@ TEST_CASE("EmitterSampler::sample_many: sample's bits in every lane, whatever th
 // same random lanes give the same bits; the test above ties the CPU's build to sample().
 TEST_CASE("light sample lanes: the AVX2 build computes the baseline build's bits") {
   namespace lanes = rt::light_sample_lanes;
-  const lanes::Kernel avx2 = lanes::avx2_kernel();
+  const lanes::Kernels* avx2 = lanes::avx2_kernels();
   if (!avx2) {
     SUCCEED("this CPU has no AVX2: only the baseline build runs here");
     return;
@@ -258,8 +260,8 @@ TEST_CASE("light sample lanes: the AVX2 build computes the baseline build's bits
     in.sin_alpha.v[2] = 0.0;  // a zero denominator: q = 1
     const int count = 1 + round % lanes::kLanes;
     lanes::Output a, b;
-    lanes::baseline_kernel()(in, count, a);
-    avx2(in, count, b);
+    lanes::baseline_kernels().sample(in, count, a);
+    avx2->sample(in, count, b);
     for (int i = 0; i < count; ++i) {
       CHECK(a.valid[i] == b.valid[i]);
       if (!a.valid[i]) continue;
@@ -312,6 +314,55 @@ TEST_CASE("lane sincos: within 1 ulp of glibc's sin and cos") {
   }
   CHECK(worst > 0.0);  // the comparison saw a difference: it is not comparing glibc with itself
   CHECK(worst_absolute <= 1e-24);
+}
+
+// The lanes' pow (render/lane_libm.h, the area-light highlights' max(n.h, 0)^sigma) is within 1
+// ulp of glibc's where the result is normal, within one subnormal step below that, and equal to
+// glibc's on the special cases it answers itself or hands to glibc; both builds of the kernel
+// (SSE2, AVX2) give the same bits.
+TEST_CASE("lane pow: within 1 ulp of glibc's pow, the same bits in both builds") {
+  namespace lanes = rt::light_sample_lanes;
+  std::mt19937_64 random(2027);
+  const auto uniform = [&](double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(random); };
+  const double nan = std::nan(""), inf = std::numeric_limits<double>::infinity();
+  // Per chunk of 16: one exponent; the bases n.h in (0, 1], near 1, near 0, and special values.
+  const std::vector<double> special_bases{0.0, -0.0, 1.0, 1.0 + 0x1p-52, 0x1p-1022, 0x1p-1060, -0.5, nan, inf, 1.5, 2.0, 1e-300};
+  const std::vector<double> special_exponents{0.0, 1.0, 2.0, 0.5, 1e-9, 1e5, 1e40, -3.0, nan, inf, 4096.0, 1024.5};
+  double worst = 0.0;
+  int chunks_with_fallback = 0;
+  for (int chunk = 0; chunk < 25000; ++chunk) {
+    double y = chunk % 3 == 0 ? std::floor(uniform(0.0, 300.0)) : uniform(0.0, 300.0);
+    if (chunk < int(special_exponents.size())) y = special_exponents[std::size_t(chunk)];
+    std::array<double, lanes::kLanes> x, a, b;
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      const double u = uniform(0.0, 1.0);
+      x[i] = i % 4 == 0 ? 1.0 - 1e-4 * u : i % 4 == 1 ? 1e-3 * u : u;
+    }
+    if (chunk % 50 == 0) {
+      std::copy_n(special_bases.begin(), special_bases.size(), x.begin());
+      ++chunks_with_fallback;
+    }
+    lanes::baseline_kernels().powers(x.data(), y, a.data());
+    if (const lanes::Kernels* avx2 = lanes::avx2_kernels()) {
+      avx2->powers(x.data(), y, b.data());
+      REQUIRE(std::memcmp(a.data(), b.data(), sizeof a) == 0);
+    }
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      const double reference = std::pow(x[i], y);
+      INFO("pow(" << x[i] << ", " << y << "): " << a[i] << " against glibc's " << reference);
+      if (std::isnan(reference) || std::isinf(reference) || reference == 0.0 || x[i] <= 0.0 || y == 0.0 || x[i] == 1.0) {
+        REQUIRE(std::memcmp(&a[i], &reference, 8) == 0);  // special cases: glibc's bits
+      } else if (reference < 0x1p-1022) {
+        REQUIRE(std::abs(a[i] - reference) <= 0x1p-1074);
+      } else {
+        const double ulp = std::nextafter(reference, inf) - reference;
+        worst = std::max(worst, std::abs(a[i] - reference) / ulp);
+        REQUIRE(std::abs(a[i] - reference) <= ulp);
+      }
+    }
+  }
+  CHECK(worst > 0.0);  // the comparison saw a difference: it is not comparing glibc with itself
+  CHECK(chunks_with_fallback > 0);
 }
 
 TEST_CASE("sample_triangle_uniform: barycentrics on the triangle, uniform (mean at the centroid)") {

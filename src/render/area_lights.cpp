@@ -254,7 +254,7 @@ LightSample EmitterSampler::sample(Vec2d u) {
 
 void EmitterSampler::sample_many(std::span<const Vec2d> u, std::span<LightSample> out) {
   namespace lanes = light_sample_lanes;
-  static const lanes::Kernel kernel = lanes::best_kernel();
+  static const lanes::Kernels& kernels = lanes::best_kernels();
   lanes::Input in;
   lanes::Output lane;
   std::array<Choice, lanes::kLanes> choices;
@@ -311,7 +311,7 @@ void EmitterSampler::sample_many(std::span<const Vec2d> u, std::span<LightSample
         set(in.c_perp, k, Vec3d(0.0, 0.0, 1.0));
       }
     }
-    kernel(in, count, lane);
+    kernels.sample(in, count, lane);
     for (int k = 0; k < count; ++k) {
       LightSample& sample = out[first + std::size_t(k)];
       sample.valid = lane.valid[k] != 0;

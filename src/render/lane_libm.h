@@ -5,7 +5,11 @@
 // lane (sampling.cpp) gets the lanes' bits. Within 1 ulp of glibc, not bit for bit: the error
 // bounds are asserted in tests/test_area_lights.cpp and what they do to images is in
 // docs/performance.md. The polynomials and the argument reduction are fdlibm's (Sun Microsystems,
-// 1993, freely distributable; as in musl's __sin, __cos and __rem_pio2).
+// 1993, freely distributable; as in musl's __sin, __cos and __rem_pio2, and fdlibm's e_pow.c).
+
+#include <cmath>
+#include <cstdint>
+#include <limits>
 
 #include "lane_math.h"
 
@@ -59,6 +63,246 @@ RT_LANE_INLINE void sincos(const D4& x, D4& sin_x, D4& cos_x) {
   const D4 sine = select(odd, c, s), cosine = select(odd, s, c);
   sin_x = select(q > broadcast(1.5), -sine, sine);
   cos_x = select((q > half) & (q < broadcast(2.5)), -cosine, cosine);
+}
+
+// N groups of four lanes as one value: every operation is issued for all N groups before the
+// next, so that the out-of-order core overlaps their dependency chains. pow's chain is about 250
+// cycles long (two divisions, two polynomials, a dozen exact-product steps), longer than the
+// reorder window holds for one group: four groups at a time take about a quarter of the time per
+// value that one does.
+template <int N>
+struct Wide {
+  D4 g[N];
+};
+template <int N>
+struct WideMask {
+  M4 g[N];
+};
+
+#define RT_WIDE_EACH(expression)   \
+  _Pragma("GCC unroll 16") for (int i = 0; i < N; ++i) expression
+#define RT_WIDE_BINARY(Result, op, Operand)                                            \
+  template <int N>                                                                     \
+  RT_LANE_INLINE Result<N> operator op(const Operand<N>& a, const Operand<N>& b) {     \
+    Result<N> r;                                                                       \
+    RT_WIDE_EACH(r.g[i] = a.g[i] op b.g[i]);                                          \
+    return r;                                                                          \
+  }
+RT_WIDE_BINARY(Wide, +, Wide)
+RT_WIDE_BINARY(Wide, -, Wide)
+RT_WIDE_BINARY(Wide, *, Wide)
+RT_WIDE_BINARY(Wide, /, Wide)
+RT_WIDE_BINARY(WideMask, <, Wide)
+RT_WIDE_BINARY(WideMask, >, Wide)
+RT_WIDE_BINARY(WideMask, >=, Wide)
+RT_WIDE_BINARY(WideMask, ==, Wide)
+RT_WIDE_BINARY(WideMask, &, WideMask)
+RT_WIDE_BINARY(WideMask, |, WideMask)
+#undef RT_WIDE_BINARY
+
+template <int N>
+RT_LANE_INLINE WideMask<N> operator~(const WideMask<N>& m) {
+  WideMask<N> r;
+  RT_WIDE_EACH(r.g[i] = ~m.g[i]);
+  return r;
+}
+template <int N>
+RT_LANE_INLINE Wide<N> select(const WideMask<N>& m, const Wide<N>& a, const Wide<N>& b) {
+  Wide<N> r;
+  RT_WIDE_EACH(r.g[i] = select(m.g[i], a.g[i], b.g[i]));
+  return r;
+}
+template <int N>
+RT_LANE_INLINE Wide<N> abs(const Wide<N>& a) {
+  Wide<N> r;
+  RT_WIDE_EACH(r.g[i] = abs(a.g[i]));
+  return r;
+}
+template <int N>
+RT_LANE_INLINE Wide<N> round_to_integer(const Wide<N>& a) {
+  Wide<N> r;
+  RT_WIDE_EACH(r.g[i] = round_to_integer(a.g[i]));
+  return r;
+}
+template <int N>
+RT_LANE_INLINE Wide<N> clamp(const Wide<N>& v, const Wide<N>& lo, const Wide<N>& hi) {
+  Wide<N> r;
+  RT_WIDE_EACH(r.g[i] = clamp(v.g[i], lo.g[i], hi.g[i]));
+  return r;
+}
+template <int N>
+RT_LANE_INLINE Wide<N> bit_and(const Wide<N>& a, const Wide<N>& b) {
+  Wide<N> r;
+  RT_WIDE_EACH(r.g[i] = bit_and(a.g[i], b.g[i]));
+  return r;
+}
+template <int N>
+RT_LANE_INLINE Wide<N> bit_or(const Wide<N>& a, const Wide<N>& b) {
+  Wide<N> r;
+  RT_WIDE_EACH(r.g[i] = bit_or(a.g[i], b.g[i]));
+  return r;
+}
+template <int bits, int N>
+RT_LANE_INLINE Wide<N> shift_left(const Wide<N>& a) {
+  Wide<N> r;
+  RT_WIDE_EACH(r.g[i] = shift_left<bits>(a.g[i]));
+  return r;
+}
+template <int bits, int N>
+RT_LANE_INLINE Wide<N> shift_right(const Wide<N>& a) {
+  Wide<N> r;
+  RT_WIDE_EACH(r.g[i] = shift_right<bits>(a.g[i]));
+  return r;
+}
+#undef RT_WIDE_EACH
+
+// pow's constants in every lane of a value of type V (D4 or Wide<N>).
+template <class V>
+struct Splat;
+template <>
+struct Splat<D4> {
+  static D4 value(double x) { return broadcast(x); }
+  static D4 bits(std::uint64_t b) { return from_bits(b); }
+};
+template <int N>
+struct Splat<Wide<N>> {
+  static Wide<N> value(double x) {
+    Wide<N> r;
+    for (D4& g : r.g) g = broadcast(x);
+    return r;
+  }
+  static Wide<N> bits(std::uint64_t b) {
+    Wide<N> r;
+    for (D4& g : r.g) g = from_bits(b);
+    return r;
+  }
+};
+
+// x^y for a positive normal x (2^-1022 <= x <= DBL_MAX), |y| <= 2^30 and y log2 x < 1023;
+// `outside` marks the lanes that break these (their value is meaningless). fdlibm's
+// __ieee754_pow, general case (Sun Microsystems, 1993): log2 x in two doubles (t1 + t2, t1 with
+// 21 significant bits), y log2 x = (y1 + y2)(t1 + t2) with y1 y's high part so that y1 t1 is
+// exact, then 2^z by fdlibm's exp kernel, scaled by multiplying with powers of two (rounding once,
+// as ldexp does, where the result is subnormal). Results below 2^-1080 are +0. One change from
+// fdlibm: t_h, an approximation of ax + bp with 21 significant bits, is the high part of their
+// rounded sum (fdlibm builds it from ax's exponent bits); any such value keeps t_h - bp and
+// ax - (t_h - bp) exact, which is all the step needs. V is D4 or Wide<N>, M its mask type.
+template <class V, class M>
+RT_LANE_INLINE V pow_positive(const V& x, const V& y, M& outside) {
+  using S = Splat<V>;
+  // x with its low 32 bits cleared (fdlibm's SET_LOW_WORD(x, 0)): at most 21 significant bits,
+  // so that the product of two such values is exact.
+  const V high_mask = S::bits(0xFFFFFFFF00000000);
+  const auto high_part = [&](const V& v) { return bit_and(v, high_mask); };
+  const V zero = S::value(0.0), one = S::value(1.0), two52 = S::value(0x1p52);
+
+  // x = 2^n m with m in [1, 2) (x is positive: no sign bit); n through the exponent field as the
+  // low bits of 2^52 + field. m is then brought to [sqrt(3)/2, sqrt(3)) and centred on bp = 1 or
+  // 1.5 (dp_h + dp_l = log2(bp)).
+  V n = (bit_or(shift_right<52>(x), two52) - two52) - S::value(1023.0);
+  const V m = bit_or(bit_and(x, S::bits(0x000FFFFFFFFFFFFF)), one);
+  const M above_sqrt3 = m >= S::bits(0x3FFBB67A00000000);
+  const M middle = (m >= S::bits(0x3FF3988F00000000)) & ~above_sqrt3;
+  const V ax = select(above_sqrt3, m * S::value(0.5), m);
+  n = select(above_sqrt3, n + one, n);
+  const V bp = select(middle, S::value(1.5), one);
+  const V dp_h = select(middle, S::value(5.84962487220764160156e-01), zero);
+  const V dp_l = select(middle, S::value(1.35003920212974897128e-08), zero);
+
+  // log2(ax / bp) from s = (ax - bp) / (ax + bp) = s_h + s_l.
+  V u = ax - bp;
+  V v = one / (ax + bp);
+  const V ss = u * v;
+  const V s_h = high_part(ss);
+  V t_h = high_part(ax + bp);
+  V t_l = ax - (t_h - bp);
+  const V s_l = v * ((u - s_h * t_h) - s_h * t_l);
+  V s2 = ss * ss;
+  V r = s2 * s2 *
+        (S::value(5.99999999999994648725e-01) +
+         s2 * (S::value(4.28571428578550184252e-01) +
+               s2 * (S::value(3.33333329818377432918e-01) +
+                     s2 * (S::value(2.72728123808534006489e-01) +
+                           s2 * (S::value(2.30660745775561754067e-01) + s2 * S::value(2.06975017800338417784e-01))))));
+  r = r + s_l * (s_h + ss);
+  s2 = s_h * s_h;
+  const V three = S::value(3.0);
+  t_h = high_part((three + s2) + r);
+  t_l = r - ((t_h - three) - s2);
+  u = s_h * t_h;
+  v = s_l * t_h + t_l * ss;
+  V p_h = high_part(u + v);
+  V p_l = v - (p_h - u);
+  // 2 / (3 ln 2) = cp_h + cp_l; log2 x = n + dp_h + z_h + z_l = t1 + t2.
+  const V z_h = S::value(9.61796700954437255859e-01) * p_h;
+  const V z_l = S::value(-7.02846165095275826516e-09) * p_h + p_l * S::value(9.61796693925975554329e-01) + dp_l;
+  const V t1 = high_part(((z_h + z_l) + dp_h) + n);
+  const V t2 = z_l - (((t1 - n) - dp_h) - z_h);
+
+  // y log2 x = p_h + p_l.
+  const V y1 = high_part(y);
+  p_l = (y - y1) * t1 + y * t2;
+  p_h = y1 * t1;
+  const V z_total = p_l + p_h;
+
+  // 2^(p_h + p_l) = 2^k exp((p_h - k + p_l) ln 2), k the nearest integer (p_h - k is exact).
+  V k = round_to_integer(z_total);
+  p_h = p_h - k;
+  V t = high_part(p_l + p_h);
+  u = t * S::value(6.93147182464599609375e-01);  // ln 2's head
+  v = (p_l - (t - p_h)) * S::value(6.93147180559945286227e-01) + t * S::value(-1.90465429995776804525e-09);
+  V z = u + v;
+  const V w = v - (z - u);
+  t = z * z;
+  const V c = z - t * (S::value(1.66666666666666019037e-01) +
+                       t * (S::value(-2.77777777770155933842e-03) +
+                            t * (S::value(6.61375632143793436117e-05) +
+                                 t * (S::value(-1.65339022054652515390e-06) + t * S::value(4.13813679705723846039e-08)))));
+  const V rr = (z * c) / (c - S::value(2.0)) - (w + z * w);
+  z = one - (rr - z);
+
+  // z 2^k, z in [0.7, 1.5]: 2^k's bits are k + 1023 in the exponent field (the low bits of
+  // 2^52 + k + 1023, shifted up). Below 2^-1000 in two steps, the first exact, the second rounding
+  // once to the subnormal result.
+  k = clamp(k, S::value(-1100.0), S::value(1023.0));
+  const M tiny = k < S::value(-1000.0);
+  k = select(tiny, k + S::value(1000.0), k);
+  const V scale = shift_left<52>((k + S::value(1023.0)) + two52);
+  const V result = (z * scale) * select(tiny, S::value(0x1p-1000), one);
+
+  outside = ~(x >= S::value(0x1p-1022)) | ~(S::value(std::numeric_limits<double>::max()) >= x) |
+            ~(S::value(0x1p30) >= abs(y)) | ~(z_total < S::value(1023.0));
+  return select(z_total < S::value(-1080.0), zero, result);
+}
+
+// out[i] = std::pow(x[i], y) for i < 4 N, within 1 ulp of glibc's (asserted in
+// tests/test_area_lights.cpp): pow_positive, with y = 0 giving 1 and x = +0, y > 0 giving +0 as
+// there; lanes outside pow_positive's domain (negative or subnormal x, -0, infinities, NaN, huge
+// y, overflow) take glibc's std::pow.
+template <int N>
+RT_LANE_INLINE void pow_many(const double* x, double y, double* out) {
+  Wide<N> xs, ys;
+  for (int i = 0; i < N; ++i) {
+    load(xs.g[i], x + 4 * i);
+    ys.g[i] = broadcast(y);
+  }
+  WideMask<N> outside;
+  const Wide<N> result = pow_positive(xs, ys, outside);
+  const D4 zero{}, one = broadcast(1.0);
+  std::int64_t fallback[4 * N];
+  bool any_fallback = false;
+  for (int i = 0; i < N; ++i) {
+    // x is +0 (not -0: +0 | 1.0 is 1.0, -0 | 1.0 is -1.0) and y > 0; or y is 0.
+    const M4 zero_result = (xs.g[i] == zero) & (bit_or(xs.g[i], one) == one) & (ys.g[i] > zero);
+    const M4 unit_result = ys.g[i] == zero;
+    store(out + 4 * i, select(unit_result, one, select(zero_result, zero, result.g[i])));
+    const M4 glibc = outside.g[i] & ~(zero_result | unit_result);
+    store(fallback + 4 * i, glibc);
+    any_fallback = any_fallback || any(glibc);
+  }
+  if (any_fallback)
+    for (int i = 0; i < 4 * N; ++i)
+      if (fallback[i]) out[i] = std::pow(x[i], y);
 }
 
 }  // namespace avx2 or sse2

@@ -98,6 +98,28 @@ RT_LANE_INLINE __m128i narrow(const M4& m) {
                                          _MM_SHUFFLE(2, 0, 2, 0)));
 }
 
+RT_LANE_INLINE bool any(const M4& m) {
+  return _mm256_movemask_pd(m.v) != 0;
+}
+
+RT_LANE_INLINE D4 from_bits(std::uint64_t bits) {
+  return {_mm256_castsi256_pd(_mm256_set1_epi64x(static_cast<long long>(bits)))};
+}
+RT_LANE_INLINE D4 bit_and(const D4& a, const D4& b) {
+  return {_mm256_and_pd(a.v, b.v)};
+}
+RT_LANE_INLINE D4 bit_or(const D4& a, const D4& b) {
+  return {_mm256_or_pd(a.v, b.v)};
+}
+template <int bits>
+RT_LANE_INLINE D4 shift_left(const D4& a) {
+  return {_mm256_castsi256_pd(_mm256_slli_epi64(_mm256_castpd_si256(a.v), bits))};
+}
+template <int bits>
+RT_LANE_INLINE D4 shift_right(const D4& a) {
+  return {_mm256_castsi256_pd(_mm256_srli_epi64(_mm256_castpd_si256(a.v), bits))};
+}
+
 }  // namespace avx2
 #else
 inline namespace sse2 {
@@ -188,6 +210,34 @@ RT_LANE_INLINE D4 to_double(const F4& v) {
 // A 64-bit-lane mask narrowed to the four float lanes (the low half of each 64-bit lane).
 RT_LANE_INLINE __m128i narrow(const M4& m) {
   return _mm_castps_si128(_mm_shuffle_ps(_mm_castpd_ps(m.lo), _mm_castpd_ps(m.hi), _MM_SHUFFLE(2, 0, 2, 0)));
+}
+
+// Whether any lane of m is set.
+RT_LANE_INLINE bool any(const M4& m) {
+  return (_mm_movemask_pd(m.lo) | _mm_movemask_pd(m.hi)) != 0;
+}
+
+// The lanes as 64-bit patterns (for lane_libm.h's exponent arithmetic): a pattern broadcast, the
+// bitwise and and or, and logical shifts of each lane's 64 bits.
+RT_LANE_INLINE D4 from_bits(std::uint64_t bits) {
+  const __m128d v = _mm_castsi128_pd(_mm_set1_epi64x(static_cast<long long>(bits)));
+  return {v, v};
+}
+RT_LANE_INLINE D4 bit_and(const D4& a, const D4& b) {
+  return {_mm_and_pd(a.lo, b.lo), _mm_and_pd(a.hi, b.hi)};
+}
+RT_LANE_INLINE D4 bit_or(const D4& a, const D4& b) {
+  return {_mm_or_pd(a.lo, b.lo), _mm_or_pd(a.hi, b.hi)};
+}
+template <int bits>
+RT_LANE_INLINE D4 shift_left(const D4& a) {
+  return {_mm_castsi128_pd(_mm_slli_epi64(_mm_castpd_si128(a.lo), bits)),
+          _mm_castsi128_pd(_mm_slli_epi64(_mm_castpd_si128(a.hi), bits))};
+}
+template <int bits>
+RT_LANE_INLINE D4 shift_right(const D4& a) {
+  return {_mm_castsi128_pd(_mm_srli_epi64(_mm_castpd_si128(a.lo), bits)),
+          _mm_castsi128_pd(_mm_srli_epi64(_mm_castpd_si128(a.hi), bits))};
 }
 
 }  // namespace sse2

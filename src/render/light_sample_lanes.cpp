@@ -110,18 +110,34 @@ void sample(const Input& in, int count, Output& out) {
   }
 }
 
+// pow(x[k], y) for the 16 lanes: four groups of four at a time with AVX2 (one register each),
+// two with SSE2 (two registers each; four would spill), to overlap pow's long dependency chains.
+void powers(const double* x, double y, double* out) {
+  static_assert(kLanes == 16);
+#ifdef RT_LIGHT_SAMPLE_LANES_AVX2
+  lm::pow_many<4>(x, y, out);
+#else
+  lm::pow_many<2>(x, y, out);
+  lm::pow_many<2>(x + 8, y, out + 8);
+#endif
+}
+
 }  // namespace (baseline or avx2)
 
 #ifdef RT_LIGHT_SAMPLE_LANES_AVX2
-Kernel avx2_kernel() {
+const Kernels* avx2_kernels() {
+  static const Kernels kernels{&avx2::sample, &avx2::powers};
   __builtin_cpu_init();  // idempotent; needed when called before the constructors have run
-  return __builtin_cpu_supports("avx2") ? &avx2::sample : nullptr;
+  return __builtin_cpu_supports("avx2") ? &kernels : nullptr;
 }
 #else
-Kernel baseline_kernel() { return &baseline::sample; }
+const Kernels& baseline_kernels() {
+  static const Kernels kernels{&baseline::sample, &baseline::powers};
+  return kernels;
+}
 
-Kernel best_kernel() {
-  static const Kernel best = avx2_kernel() ? avx2_kernel() : baseline_kernel();
+const Kernels& best_kernels() {
+  static const Kernels& best = avx2_kernels() ? *avx2_kernels() : baseline_kernels();
   return best;
 }
 #endif

@@ -44,12 +44,17 @@ struct Output {
   alignas(32) std::int64_t valid[kLanes];  // all ones or 0
 };
 
-// One build: `count` lanes (<= kLanes) of `in` into `out`.
-using Kernel = void (*)(const Input& in, int count, Output& out);
+// One build of the lanes: `sample` computes `count` lanes (<= kLanes) of `in` into `out`;
+// `powers` sets out[k] = pow(x[k], y) for k < kLanes (lane_libm.h's pow: within 1 ulp of glibc's,
+// the same bits in both builds), the highlights of a chunk of samples.
+struct Kernels {
+  void (*sample)(const Input& in, int count, Output& out);
+  void (*powers)(const double* x, double y, double* out);
+};
 
-Kernel baseline_kernel();
-Kernel avx2_kernel();  // nullptr when the CPU lacks AVX2
+const Kernels& baseline_kernels();
+const Kernels* avx2_kernels();  // nullptr when the CPU lacks AVX2
 // The AVX2 build where the CPU has it, else the baseline.
-Kernel best_kernel();
+const Kernels& best_kernels();
 
 }  // namespace rt::light_sample_lanes

@@ -15,6 +15,7 @@
 #include "rt/render/dielectric.h"
 #include "rt/render/sampling.h"
 #include "rt/render/surface_maps.h"
+#include "light_sample_lanes.h"
 #include "shading_margins.h"
 #include "shadow_records.h"
 
@@ -204,8 +205,10 @@ class SideOrigins {
 // pattern order: term_k = L_e,k / pdf_k (C_d n.l_k + C_s max(n.h_k, 0)^sigma) / (pi N) where
 // n.l_k > 0, shadowed by its own ray. The emitter-level rules (unlit material, behind a planar
 // emitter, below the horizon) make every term of the emitter zero in both modes: pruned, no
-// sample is drawn; unpruned, the samples are drawn and traced and add zero. Kept out of line, so
-// that scenes without emitters run shade_surface as it was compiled before area lights.
+// sample is drawn; unpruned, the samples are drawn and traced and add zero. The pow is the lanes'
+// (lane_libm.h, within 1 ulp of glibc's; what that does to images is in docs/performance.md).
+// Kept out of line, so that scenes without emitters run shade_surface as it was compiled before
+// area lights.
 template <class Shadows>
 [[gnu::noinline]] void add_area_light_terms(const ShadingContext& context, const LitSurface& lit, int depth, std::uint64_t path_seed,
                           RayCounts& counts, Shadows& shadows) {
@@ -222,9 +225,14 @@ template <class Shadows>
            to_string(rule));
   };
   SideOrigins origins{context.ray_offset, lit.surface};
-  // The pattern's points and their light samples, drawn together a chunk at a time.
-  std::array<Vec2d, 16> points;
-  std::array<LightSample, points.size()> drawn;
+  // The pattern's points and their light samples, drawn together a chunk at a time, with their n.l
+  // and the highlights max(n.h, 0)^sigma (lanes' pow, below).
+  constexpr std::size_t kChunk = light_sample_lanes::kLanes;
+  std::array<Vec2d, kChunk> points;
+  std::array<LightSample, kChunk> drawn;
+  std::array<double, kChunk> n_dot_l, n_dot_h, highlight_power;
+  const bool highlights = lit.terms.specular || !prune;
+  static const light_sample_lanes::Kernels& lanes = light_sample_lanes::best_kernels();
   for (std::size_t e = 0; e < area_lights.emitters.size(); ++e) {
     const Emitter& emitter = area_lights.emitters[e];
     const std::size_t slot = context.scene.lights.size() + e;
@@ -247,27 +255,35 @@ template <class Shadows>
     const auto pattern = static_cast<std::uint32_t>(mix64(path_seed ^ mix64((std::uint64_t(depth) << 32) + e)));
     EmitterSampler sampler(emitter, context.flat, context.scene, context.textures, point, plan.options.light_sampling);
     for (std::uint32_t k = 0; k < samples; ++k) {
-      if (k % points.size() == 0) {
-        const auto chunk = std::span(points).first(std::min<std::size_t>(points.size(), samples - k));
+      const std::size_t j = k % kChunk;
+      if (j == 0) {
+        const auto chunk = std::span(points).first(std::min<std::size_t>(kChunk, samples - k));
         cmj_samples(k, chunk, samples, pattern);
         sampler.sample_many(chunk, drawn);
+        for (std::size_t i = 0; i < kChunk; ++i) {
+          const LightSample& sample = drawn[i];
+          n_dot_h[i] = 1.0;  // a harmless pow argument where the term needs none
+          if (i >= chunk.size() || !sample.valid) continue;
+          n_dot_l[i] = glm::dot(lit.normal, sample.direction);
+          if (all_zero || !(n_dot_l[i] > 0.0)) continue;
+          const Vec3d half_sum = sample.direction + lit.to_eye;
+          const double half_length = glm::length(half_sum);
+          n_dot_h[i] = half_length > 0.0 ? std::max(glm::dot(lit.normal, half_sum) / half_length, 0.0) : 0.0;
+        }
+        if (highlights) lanes.powers(n_dot_h.data(), lit.shininess, highlight_power.data());
       }
-      const LightSample& sample = drawn[k % points.size()];
+      const LightSample& sample = drawn[j];
       if (!sample.valid) {
         skip(SkipRule::sample_on_surface, e, 1);
         continue;
       }
       Vec3d term(0.0);
-      const double n_dot_l = glm::dot(lit.normal, sample.direction);
-      if (!all_zero && n_dot_l > 0.0) {
-        const Vec3d half_sum = sample.direction + lit.to_eye;
-        const double half_length = glm::length(half_sum);
-        const double n_dot_h = half_length > 0.0 ? std::max(glm::dot(lit.normal, half_sum) / half_length, 0.0) : 0.0;
-        const Vec3d highlight = lit.terms.specular || !prune ? lit.specular * std::pow(n_dot_h, lit.shininess) : Vec3d(0.0);
+      if (!all_zero && n_dot_l[j] > 0.0) {
+        const Vec3d highlight = highlights ? lit.specular * highlight_power[j] : Vec3d(0.0);
         const Vec3d radiance = sample.texcoord ? sample.radiance_over_pdf *
                                                      Vec3d(context.textures->emission(emitter.material, *sample.texcoord))
                                                : sample.radiance_over_pdf;
-        term = radiance * (lit.diffuse * n_dot_l + highlight) * scale;
+        term = radiance * (lit.diffuse * n_dot_l[j] + highlight) * scale;
       }
       if (prune && term == Vec3d(0.0)) {
         skip(SkipRule::sample_zero, e, 1);
