@@ -23,53 +23,11 @@ inline namespace avx2 {
 inline namespace sse2 {
 #endif
 
-// sin(x) and cos(x) for |x| < 2^20 (radians), within 1 ulp of glibc's where the result is not
-// within 1e-9 of zero (there, within 1e-24 absolute). NaN gives NaN.
-RT_LANE_INLINE void sincos(const D4& x, D4& sin_x, D4& cos_x) {
-  // x = n pi/2 + (y0 + y1): pi/2 in two parts, the first of 33 bits so that n * pio2_1 is exact
-  // for |n| < 2^20 (fdlibm's __rem_pio2, medium range, first step).
-  const D4 n = round_to_integer(x * broadcast(6.36619772367581382433e-01));  // 2 / pi
-  const D4 pio2_1 = broadcast(1.57079632673412561417e+00), pio2_1t = broadcast(6.07710050650619224932e-11);
-  const D4 r = x - n * pio2_1, w = n * pio2_1t;
-  const D4 y0 = r - w;
-  const D4 y1 = (r - y0) - w;
-
-  // fdlibm's kernels on |y0 + y1| <= pi/4.
-  const D4 one = broadcast(1.0), half = broadcast(0.5);
-  const D4 z = y0 * y0;
-  const D4 v = z * y0;
-  const D4 rs = broadcast(8.33333333332248946124e-03) +
-                z * (broadcast(-1.98412698298579493134e-04) +
-                     z * (broadcast(2.75573137070700676789e-06) +
-                          z * (broadcast(-2.50507602534068634195e-08) + z * broadcast(1.58969099521155010221e-10))));
-  const D4 s = y0 - ((z * (half * y1 - v * rs) - y1) - v * broadcast(-1.66666666666666324348e-01));
-  const D4 rc = z * (broadcast(4.16666666666666019037e-02) +
-                     z * (broadcast(-1.38888888888741095749e-03) +
-                          z * (broadcast(2.48015872894767294178e-05) +
-                               z * (broadcast(-2.75573143513906633035e-07) +
-                                    z * (broadcast(2.08757232129817482790e-09) +
-                                         z * broadcast(-1.13596475577881948265e-11))))));
-  const D4 hz = half * z;
-  const D4 c0 = one - hz;
-  const D4 c = c0 + (((one - c0) - hz) + (z * rc - y0 * y1));
-
-  // The quadrant q = n mod 4, exactly, from n / 4's floor: q 1 and 3 swap sine and cosine; the
-  // sine is negated in quadrants 2 and 3, the cosine in 1 and 2.
-  const D4 quarter = n * broadcast(0.25);
-  D4 floor_quarter = round_to_integer(quarter);
-  floor_quarter = select(floor_quarter > quarter, floor_quarter - one, floor_quarter);
-  const D4 q = n - broadcast(4.0) * floor_quarter;
-  const M4 odd = (q == one) | (q == broadcast(3.0));
-  const D4 sine = select(odd, c, s), cosine = select(odd, s, c);
-  sin_x = select(q > broadcast(1.5), -sine, sine);
-  cos_x = select((q > half) & (q < broadcast(2.5)), -cosine, cosine);
-}
-
 // N groups of four lanes as one value: every operation is issued for all N groups before the
 // next, so that the out-of-order core overlaps their dependency chains. pow's chain is about 250
 // cycles long (two divisions, two polynomials, a dozen exact-product steps), longer than the
-// reorder window holds for one group: four groups at a time take about a quarter of the time per
-// value that one does.
+// reorder window holds for one group: four groups at a time (AVX2) take half the time per value
+// that one does. With SSE2 (two registers a group) more than two groups spill.
 template <int N>
 struct Wide {
   D4 g[N];
@@ -96,10 +54,17 @@ RT_WIDE_BINARY(WideMask, <, Wide)
 RT_WIDE_BINARY(WideMask, >, Wide)
 RT_WIDE_BINARY(WideMask, >=, Wide)
 RT_WIDE_BINARY(WideMask, ==, Wide)
+RT_WIDE_BINARY(WideMask, !=, Wide)
 RT_WIDE_BINARY(WideMask, &, WideMask)
 RT_WIDE_BINARY(WideMask, |, WideMask)
 #undef RT_WIDE_BINARY
 
+template <int N>
+RT_LANE_INLINE Wide<N> operator-(const Wide<N>& a) {
+  Wide<N> r;
+  RT_WIDE_EACH(r.g[i] = -a.g[i]);
+  return r;
+}
 template <int N>
 RT_LANE_INLINE WideMask<N> operator~(const WideMask<N>& m) {
   WideMask<N> r;
@@ -116,6 +81,18 @@ template <int N>
 RT_LANE_INLINE Wide<N> abs(const Wide<N>& a) {
   Wide<N> r;
   RT_WIDE_EACH(r.g[i] = abs(a.g[i]));
+  return r;
+}
+template <int N>
+RT_LANE_INLINE Wide<N> sqrt(const Wide<N>& a) {
+  Wide<N> r;
+  RT_WIDE_EACH(r.g[i] = sqrt(a.g[i]));
+  return r;
+}
+template <int N>
+RT_LANE_INLINE Wide<N> max(const Wide<N>& a, const Wide<N>& b) {
+  Wide<N> r;
+  RT_WIDE_EACH(r.g[i] = max(a.g[i], b.g[i]));
   return r;
 }
 template <int N>
@@ -156,7 +133,7 @@ RT_LANE_INLINE Wide<N> shift_right(const Wide<N>& a) {
 }
 #undef RT_WIDE_EACH
 
-// pow's constants in every lane of a value of type V (D4 or Wide<N>).
+// A constant in every lane of a value of type V (D4 or Wide<N>).
 template <class V>
 struct Splat;
 template <>
@@ -177,6 +154,50 @@ struct Splat<Wide<N>> {
     return r;
   }
 };
+
+// sin(x) and cos(x) for |x| < 2^20 (radians), within 1 ulp of glibc's where the result is not
+// within 1e-9 of zero (there, within 1e-24 absolute). NaN gives NaN. V is D4 or Wide<N>.
+template <class V>
+RT_LANE_INLINE void sincos(const V& x, V& sin_x, V& cos_x) {
+  using S = Splat<V>;
+  // x = n pi/2 + (y0 + y1): pi/2 in two parts, the first of 33 bits so that n * pio2_1 is exact
+  // for |n| < 2^20 (fdlibm's __rem_pio2, medium range, first step).
+  const V n = round_to_integer(x * S::value(6.36619772367581382433e-01));  // 2 / pi
+  const V pio2_1 = S::value(1.57079632673412561417e+00), pio2_1t = S::value(6.07710050650619224932e-11);
+  const V r = x - n * pio2_1, w = n * pio2_1t;
+  const V y0 = r - w;
+  const V y1 = (r - y0) - w;
+
+  // fdlibm's kernels on |y0 + y1| <= pi/4.
+  const V one = S::value(1.0), half = S::value(0.5);
+  const V z = y0 * y0;
+  const V v = z * y0;
+  const V rs = S::value(8.33333333332248946124e-03) +
+                z * (S::value(-1.98412698298579493134e-04) +
+                     z * (S::value(2.75573137070700676789e-06) +
+                          z * (S::value(-2.50507602534068634195e-08) + z * S::value(1.58969099521155010221e-10))));
+  const V s = y0 - ((z * (half * y1 - v * rs) - y1) - v * S::value(-1.66666666666666324348e-01));
+  const V rc = z * (S::value(4.16666666666666019037e-02) +
+                     z * (S::value(-1.38888888888741095749e-03) +
+                          z * (S::value(2.48015872894767294178e-05) +
+                               z * (S::value(-2.75573143513906633035e-07) +
+                                    z * (S::value(2.08757232129817482790e-09) +
+                                         z * S::value(-1.13596475577881948265e-11))))));
+  const V hz = half * z;
+  const V c0 = one - hz;
+  const V c = c0 + (((one - c0) - hz) + (z * rc - y0 * y1));
+
+  // The quadrant q = n mod 4, exactly, from n / 4's floor: q 1 and 3 swap sine and cosine; the
+  // sine is negated in quadrants 2 and 3, the cosine in 1 and 2.
+  const V quarter = n * S::value(0.25);
+  V floor_quarter = round_to_integer(quarter);
+  floor_quarter = select(floor_quarter > quarter, floor_quarter - one, floor_quarter);
+  const V q = n - S::value(4.0) * floor_quarter;
+  const auto odd = (q == one) | (q == S::value(3.0));
+  const V sine = select(odd, c, s), cosine = select(odd, s, c);
+  sin_x = select(q > S::value(1.5), -sine, sine);
+  cos_x = select((q > half) & (q < S::value(2.5)), -cosine, cosine);
+}
 
 // x^y for a positive normal x (2^-1022 <= x <= DBL_MAX), |y| <= 2^30 and y log2 x < 1023;
 // `outside` marks the lanes that break these (their value is meaningless). fdlibm's

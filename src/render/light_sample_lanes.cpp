@@ -20,94 +20,153 @@ namespace baseline {
 
 namespace lm = lane_math;
 using lm::D4;
-using lm::M4;
-using lm::cross;
-using lm::dot;
-using lm::normalize;
+using lm::Wide;
+using lm::WideMask;
 
-using lm::Xyz;
+// N groups of four lanes (lane_libm.h's Wide): the kernel's arithmetic is issued for all N
+// groups together, so that their long chains of divisions and square roots overlap.
+template <int N>
+struct Vec3W {
+  Wide<N> x, y, z;
+};
 
-[[gnu::always_inline]] static inline D4 at(const Lanes& v, int g) {
-  D4 out;
-  lm::load(out, v.v + g);
+template <int N>
+[[gnu::always_inline]] static inline Wide<N> at(const Lanes& v, int g) {
+  Wide<N> out;
+  for (int i = 0; i < N; ++i) lm::load(out.g[i], v.v + g + 4 * i);
   return out;
 }
-
-[[gnu::always_inline]] static inline Xyz at(const Vec3& v, int g) {
-  Xyz out;
-  lm::load(out, v, g);
+template <int N>
+[[gnu::always_inline]] static inline Vec3W<N> at(const Vec3& v, int g) {
+  return {at<N>(v.x, g), at<N>(v.y, g), at<N>(v.z, g)};
+}
+template <int N>
+[[gnu::always_inline]] static inline void put(Lanes& to, int g, const Wide<N>& v) {
+  for (int i = 0; i < N; ++i) lm::store(to.v + g + 4 * i, v.g[i]);
+}
+template <int N>
+[[gnu::always_inline]] static inline void put(Vec3& to, int g, const Vec3W<N>& v) {
+  put(to.x, g, v.x);
+  put(to.y, g, v.y);
+  put(to.z, g, v.z);
+}
+template <int N>
+[[gnu::always_inline]] static inline void put(std::int64_t* to, int g, const WideMask<N>& m) {
+  for (int i = 0; i < N; ++i) lm::store(to + g + 4 * i, m.g[i]);
+}
+template <int N>
+[[gnu::always_inline]] static inline WideMask<N> mask_at(const std::int64_t* from, int g) {
+  WideMask<N> out;
+  for (int i = 0; i < N; ++i) lm::load(out.g[i], from + g + 4 * i);
   return out;
+}
+template <int N>
+[[gnu::always_inline]] static inline Wide<N> splat(double x) {
+  return lm::Splat<Wide<N>>::value(x);
+}
+
+// glm's dot, cross and normalize, with glm's order of operations (lane_math.h's Xyz).
+template <int N>
+[[gnu::always_inline]] static inline Wide<N> dot(const Vec3W<N>& a, const Vec3W<N>& b) {
+  return a.x * b.x + a.y * b.y + a.z * b.z;
+}
+template <int N>
+[[gnu::always_inline]] static inline Vec3W<N> cross(const Vec3W<N>& a, const Vec3W<N>& b) {
+  return {a.y * b.z - b.y * a.z, a.z * b.x - b.z * a.x, a.x * b.y - b.x * a.y};
+}
+template <int N>
+[[gnu::always_inline]] static inline Vec3W<N> normalize(const Vec3W<N>& v) {
+  const Wide<N> scale = splat<N>(1.0) / lm::sqrt(dot(v, v));
+  return {v.x * scale, v.y * scale, v.z * scale};
+}
+template <int N>
+[[gnu::always_inline]] static inline Vec3W<N> minus(const Vec3W<N>& a, const Vec3W<N>& b) {
+  return {a.x - b.x, a.y - b.y, a.z - b.z};
 }
 
 // a s + b t, component by component.
-[[gnu::always_inline]] static inline Xyz combine(const D4& s, const Xyz& a, const D4& t, const Xyz& b) {
+template <int N>
+[[gnu::always_inline]] static inline Vec3W<N> combine(const Wide<N>& s, const Vec3W<N>& a, const Wide<N>& t,
+                                                      const Vec3W<N>& b) {
   return {s * a.x + t * b.x, s * a.y + t * b.y, s * a.z + t * b.z};
 }
 
 // SphericalTriangle::sample (sampling.cpp).
-[[gnu::always_inline]] static inline Xyz arvo_direction(const Input& in, int g) {
-  const D4 zero{}, one = lm::broadcast(1.0);
-  D4 s, t;
-  lm::sincos(at(in.angle, g), s, t);
-  const D4 cos_alpha = at(in.cos_alpha, g), sin_alpha = at(in.sin_alpha, g);
-  const D4 uu = t - cos_alpha, vv = s + sin_alpha * at(in.cos_c, g);
-  const D4 denominator = (vv * s + uu * t) * sin_alpha;
-  const D4 q = lm::select(denominator != zero,
-                          lm::clamp(((vv * t - uu * s) * cos_alpha - vv) / denominator, -one, one), one);
-  const Xyz b = at(in.b, g);
-  const Xyz c_prime = combine(q, at(in.a, g), lm::sqrt(lm::max(zero, one - q * q)), at(in.c_perp, g));
-  const D4 cosine = dot(c_prime, b);
-  const D4 z = one - at(in.v, g) * (one - cosine);
-  const Xyz across = normalize({c_prime.x - cosine * b.x, c_prime.y - cosine * b.y, c_prime.z - cosine * b.z});
+template <int N>
+[[gnu::always_inline]] static inline Vec3W<N> arvo_direction(const Input& in, int g) {
+  const Wide<N> zero = splat<N>(0.0), one = splat<N>(1.0);
+  Wide<N> s, t;
+  lm::sincos(at<N>(in.angle, g), s, t);
+  const Wide<N> cos_alpha = at<N>(in.cos_alpha, g), sin_alpha = at<N>(in.sin_alpha, g);
+  const Wide<N> uu = t - cos_alpha, vv = s + sin_alpha * at<N>(in.cos_c, g);
+  const Wide<N> denominator = (vv * s + uu * t) * sin_alpha;
+  const Wide<N> q = lm::select(denominator != zero,
+                               lm::clamp(((vv * t - uu * s) * cos_alpha - vv) / denominator, -one, one), one);
+  const Vec3W<N> b = at<N>(in.b, g);
+  const Vec3W<N> c_prime = combine(q, at<N>(in.a, g), lm::sqrt(lm::max(zero, one - q * q)), at<N>(in.c_perp, g));
+  const Wide<N> cosine = dot(c_prime, b);
+  const Wide<N> z = one - at<N>(in.v, g) * (one - cosine);
+  const Vec3W<N> across = normalize(Vec3W<N>{c_prime.x - cosine * b.x, c_prime.y - cosine * b.y, c_prime.z - cosine * b.z});
   return normalize(combine(z, b, lm::sqrt(lm::max(zero, one - z * z)), across));
 }
 
+// Lanes g .. g + 4N - 1 of the kernel.
+template <int N>
+[[gnu::always_inline]] static inline void sample_groups(const Input& in, int g, Output& out) {
+  const Wide<N> zero = splat<N>(0.0), one = splat<N>(1.0);
+  const Vec3W<N> point{splat<N>(in.point[0]), splat<N>(in.point[1]), splat<N>(in.point[2])};
+  const Vec3W<N> p0 = at<N>(in.p0, g), p1 = at<N>(in.p1, g), p2 = at<N>(in.p2, g);
+  const WideMask<N> by_solid_angle = mask_at<N>(in.by_solid_angle, g);
+
+  // barycentrics_along(point, w, p0, p1, p2) for the warped direction w.
+  const Vec3W<N> w = arvo_direction<N>(in, g);
+  const Vec3W<N> e1 = minus(p1, p0), e2 = minus(p2, p0);
+  const Vec3W<N> pv = cross(w, e2);
+  const Wide<N> determinant = dot(e1, pv);
+  const Vec3W<N> tv = minus(point, p0);
+  Wide<N> b1 = lm::clamp(dot(tv, pv) / determinant, zero, one);
+  Wide<N> b2 = lm::clamp(dot(w, cross(tv, e1)) / determinant, zero, one);
+  const Wide<N> sum = b1 + b2;
+  const WideMask<N> over = sum > one;
+  b1 = lm::select(over, b1 / sum, b1);
+  b2 = lm::select(over, b2 / sum, b2);
+
+  // Where sampled by area, sample_triangle_uniform's barycentrics instead.
+  b1 = lm::select(by_solid_angle, b1, at<N>(in.b1, g));
+  b2 = lm::select(by_solid_angle, b2, at<N>(in.b2, g));
+  WideMask<N> valid = ~by_solid_angle | (determinant != zero);
+
+  put(out.b1, g, b1);
+  put(out.b2, g, b2);
+
+  // make_surface_point.
+  const Wide<N> w0 = one - b1 - b2;
+  const Vec3W<N> p{w0 * p0.x + b1 * p1.x + b2 * p2.x, w0 * p0.y + b1 * p1.y + b2 * p2.y,
+                   w0 * p0.z + b1 * p1.z + b2 * p2.z};
+  put(out.point, g, p);
+  const Wide<N> largest = lm::max(lm::max(lm::abs(p.x), lm::abs(p.y)), lm::abs(p.z));
+  put(out.error_bound, g,
+      splat<N>(ray_offset_detail::kScaledRoundoff) * (splat<N>(std::sqrt(3.0)) * largest + at<N>(in.edge_term, g)));
+
+  // The unit direction and distance from the shading point (EmitterSampler::sample).
+  const Vec3W<N> offset = minus(p, point);
+  const Wide<N> distance = lm::sqrt(dot(offset, offset));
+  valid = valid & (distance > zero);
+  put(out.distance, g, distance);
+  put(out.direction, g, Vec3W<N>{offset.x / distance, offset.y / distance, offset.z / distance});
+  put(out.valid, g, valid);
+}
+
+// The groups of four in use, as many at a time as the build's registers hold (see Wide).
 void sample(const Input& in, int count, Output& out) {
-  const D4 zero{}, one = lm::broadcast(1.0);
-  const Xyz point{lm::broadcast(in.point[0]), lm::broadcast(in.point[1]), lm::broadcast(in.point[2])};
-  for (int g = 0; g < count; g += 4) {
-    const Xyz p0 = at(in.p0, g), p1 = at(in.p1, g), p2 = at(in.p2, g);
-    M4 by_solid_angle;
-    lm::load(by_solid_angle, in.by_solid_angle + g);
-
-    // barycentrics_along(point, w, p0, p1, p2) for the warped direction w.
-    const Xyz w = arvo_direction(in, g);
-    const Xyz e1{p1.x - p0.x, p1.y - p0.y, p1.z - p0.z}, e2{p2.x - p0.x, p2.y - p0.y, p2.z - p0.z};
-    const Xyz pv = cross(w, e2);
-    const D4 determinant = dot(e1, pv);
-    const Xyz tv{point.x - p0.x, point.y - p0.y, point.z - p0.z};
-    D4 b1 = lm::clamp(dot(tv, pv) / determinant, zero, one);
-    D4 b2 = lm::clamp(dot(w, cross(tv, e1)) / determinant, zero, one);
-    const D4 sum = b1 + b2;
-    const M4 over = sum > one;
-    b1 = lm::select(over, b1 / sum, b1);
-    b2 = lm::select(over, b2 / sum, b2);
-
-    // Where sampled by area, sample_triangle_uniform's barycentrics instead.
-    b1 = lm::select(by_solid_angle, b1, at(in.b1, g));
-    b2 = lm::select(by_solid_angle, b2, at(in.b2, g));
-    M4 valid = ~by_solid_angle | (determinant != zero);
-
-    lm::store(out.b1.v + g, b1);
-    lm::store(out.b2.v + g, b2);
-
-    // make_surface_point.
-    const D4 w0 = one - b1 - b2;
-    const Xyz p{w0 * p0.x + b1 * p1.x + b2 * p2.x, w0 * p0.y + b1 * p1.y + b2 * p2.y,
-                w0 * p0.z + b1 * p1.z + b2 * p2.z};
-    lm::store(out.point, g, p);
-    const D4 largest = lm::max(lm::max(lm::abs(p.x), lm::abs(p.y)), lm::abs(p.z));
-    lm::store(out.error_bound.v + g, lm::broadcast(ray_offset_detail::kScaledRoundoff) *
-                                         (lm::broadcast(std::sqrt(3.0)) * largest + at(in.edge_term, g)));
-
-    // The unit direction and distance from the shading point (EmitterSampler::sample).
-    const Xyz offset{p.x - point.x, p.y - point.y, p.z - point.z};
-    const D4 distance = lm::sqrt(dot(offset, offset));
-    valid = valid & (distance > zero);
-    lm::store(out.distance.v + g, distance);
-    lm::store(out.direction, g, Xyz{offset.x / distance, offset.y / distance, offset.z / distance});
-    lm::store(out.valid + g, valid);
-  }
+#ifdef RT_LIGHT_SAMPLE_LANES_AVX2
+  constexpr int kWidest = 4;
+#else
+  constexpr int kWidest = 2;
+#endif
+  int g = 0;
+  for (; g + 4 * kWidest <= count; g += 4 * kWidest) sample_groups<kWidest>(in, g, out);
+  for (; g < count; g += 4) sample_groups<1>(in, g, out);
 }
 
 // pow(x[k], y) for the 16 lanes: four groups of four at a time with AVX2 (one register each),
