@@ -13,6 +13,7 @@
 #include <numbers>
 #include <random>
 #include <set>
+#include <tuple>
 
 #include "rt/accel/accel.h"
 #include <glm/gtc/matrix_transform.hpp>
@@ -363,6 +364,103 @@ TEST_CASE("lane pow: within 1 ulp of glibc's pow, the same bits in both builds")
   }
   CHECK(worst > 0.0);  // the comparison saw a difference: it is not comparing glibc with itself
   CHECK(chunks_with_fallback > 0);
+}
+
+// The lanes' atan2 for y >= 0 (render/lane_libm.h, SphericalTriangle's interior angles) is within
+// 1 ulp of glibc's, and gives glibc's bits on the special cases it answers itself or hands to
+// glibc.
+TEST_CASE("lane atan2: within 1 ulp of glibc's atan2 for y >= 0") {
+  namespace lm = rt::lane_math;
+  std::mt19937_64 random(2028);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  const double inf = std::numeric_limits<double>::infinity();
+  std::vector<std::pair<double, double>> cases{
+      {0.0, 1.0},    {0.0, -1.0}, {0.0, 0.0},          {0.0, -0.0},     {1.0, 0.0},       {1.0, -0.0},
+      {1e-310, 1.0}, {inf, 1.0},  {1.0, inf},          {-1.0, 1.0},     {-0.0, -1.0},     {std::nan(""), 1.0},
+      {1e200, 1e-200}, {1e-200, -1e200}, {1e-200, 1e200}, {1.0, 1e-310}};
+  while (cases.size() < 400000) {
+    // |u x v| and u . v of unit vectors, as SphericalTriangle passes them, and smaller ratios.
+    const double c = unit(random), scale = cases.size() % 3 == 0 ? 1e-6 : 1.0;
+    cases.emplace_back(std::sqrt(std::max(0.0, 1.0 - c * c)) * scale, c);
+  }
+  double worst = 0.0;
+  for (std::size_t i = 0; i < cases.size(); i += 4) {
+    double ys[4], xs[4], angles[4];
+    for (std::size_t k = 0; k < 4; ++k) std::tie(ys[k], xs[k]) = cases[std::min(i + k, cases.size() - 1)];
+    lm::D4 y, x;
+    lm::load(y, ys);
+    lm::load(x, xs);
+    lm::store(angles, lm::atan2(y, x));
+    for (std::size_t k = 0; k < 4; ++k) {
+      const double reference = std::atan2(ys[k], xs[k]);
+      INFO("atan2(" << ys[k] << ", " << xs[k] << "): " << angles[k] << " against glibc's " << reference);
+      if (std::isnan(reference) || reference == 0.0 || !(ys[k] > 0.0) || xs[k] == 0.0 || std::isinf(ys[k]) ||
+          std::isinf(xs[k])) {
+        REQUIRE(std::memcmp(&angles[k], &reference, 8) == 0);  // special cases: glibc's bits
+        continue;
+      }
+      const double ulp = std::nextafter(reference, inf) - reference;
+      worst = std::max(worst, std::abs(angles[k] - reference) / ulp);
+      REQUIRE(std::abs(angles[k] - reference) <= ulp);
+    }
+  }
+  CHECK(worst > 0.0);  // the comparison saw a difference: it is not comparing glibc with itself
+}
+
+// SphericalTriangle::set_up_many's lanes give the constructor's bits (which takes the same path
+// with one triangle), for each lane count, degenerate triangles included; and both builds agree.
+TEST_CASE("SphericalTriangle::set_up_many: the constructor's bits in every lane, in both builds") {
+  namespace lanes = rt::light_sample_lanes;
+  std::mt19937_64 random(2029);
+  std::uniform_real_distribution<double> coordinate(-2.0, 2.0);
+  const auto point = [&] { return Vec3d(coordinate(random), coordinate(random), coordinate(random)); };
+  const auto same = [](const auto& a, const auto& b) { return std::memcmp(&a, &b, sizeof a) == 0; };
+  int valid = 0, invalid = 0;
+  for (int round = 0; round < 2000; ++round) {
+    const Vec3d p = point();
+    const std::size_t count = 1 + std::size_t(round % 4);
+    std::vector<std::array<Vec3d, 3>> corners(count);
+    for (auto& t : corners) t = {point(), point(), point()};
+    if (round % 7 == 0) corners[0][1] = p;                          // a vertex at the point
+    if (round % 11 == 0) corners[count - 1][2] = corners[count - 1][1];  // a side of zero length
+    std::vector<rt::SphericalTriangle> many(count);
+    rt::SphericalTriangle::set_up_many(p, corners, many);
+    for (std::size_t i = 0; i < count; ++i) {
+      const rt::SphericalTriangle one(p, corners[i][0], corners[i][1], corners[i][2]);
+      REQUIRE(same(one, many[i]));
+      (one.valid() ? valid : invalid) += 1;
+    }
+    // The two builds of the kernel on the same lanes.
+    if (const lanes::Kernels* avx2 = lanes::avx2_kernels()) {
+      lanes::SphericalInput in;
+      for (int axis = 0; axis < 3; ++axis) in.point[axis] = p[axis];
+      for (std::size_t i = 0; i < 4; ++i) {
+          in.a.x.v[i] = corners[std::min(i, count - 1)][0].x;
+          in.a.y.v[i] = corners[std::min(i, count - 1)][0].y;
+          in.a.z.v[i] = corners[std::min(i, count - 1)][0].z;
+          in.b.x.v[i] = corners[std::min(i, count - 1)][1].x;
+          in.b.y.v[i] = corners[std::min(i, count - 1)][1].y;
+          in.b.z.v[i] = corners[std::min(i, count - 1)][1].z;
+          in.c.x.v[i] = corners[std::min(i, count - 1)][2].x;
+          in.c.y.v[i] = corners[std::min(i, count - 1)][2].y;
+          in.c.z.v[i] = corners[std::min(i, count - 1)][2].z;
+        }
+      lanes::SphericalOutput a, b;
+      lanes::baseline_kernels().spherical(in, a);
+      avx2->spherical(in, b);
+      for (const auto& [x, y] : {std::pair{&a.a, &b.a}, std::pair{&a.b, &b.b}, std::pair{&a.c_perp, &b.c_perp}}) {
+        REQUIRE(same(x->x.v, y->x.v));  // the lanes only: LaneArray's alignment pads it
+        REQUIRE(same(x->y.v, y->y.v));
+        REQUIRE(same(x->z.v, y->z.v));
+      }
+      for (const auto& [x, y] : {std::pair{&a.alpha, &b.alpha}, std::pair{&a.cos_alpha, &b.cos_alpha},
+                                 std::pair{&a.sin_alpha, &b.sin_alpha}, std::pair{&a.cos_c, &b.cos_c},
+                                 std::pair{&a.area, &b.area}})
+        REQUIRE(same(x->v, y->v));
+    }
+  }
+  CHECK(valid > 1000);
+  CHECK(invalid > 100);
 }
 
 TEST_CASE("sample_triangle_uniform: barycentrics on the triangle, uniform (mean at the centroid)") {

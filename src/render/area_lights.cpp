@@ -171,17 +171,43 @@ EmitterSampler::EmitterSampler(const Emitter& emitter, const FlatScene& flat, co
                                const TextureSampler* textures, const Vec3d& point, LightSampling sampling)
     : emitter_(emitter), flat_(flat), scene_(scene), textures_(textures), point_(point), sampling_(sampling) {}
 
-EmitterSampler::View EmitterSampler::view_of(const EmitterTriangle& t) const {
-  View view;
-  if (sampling_ == LightSampling::area) return view;
+bool EmitterSampler::needs_spherical(const EmitterTriangle& t) const {
+  if (sampling_ == LightSampling::area) return false;
   // A triangle whose back faces the point sends nothing: area sampling finds that as cheaply.
-  if (sampling_ == LightSampling::automatic && !(glm::dot(t.normal, point_ - t.p0) > 0.0)) return view;
-  view.spherical = SphericalTriangle(point_, t.p0, t.p1, t.p2);
-  view.by_solid_angle = view.spherical.valid() &&
-                        (sampling_ == LightSampling::solid_angle ||
-                         (view.spherical.solid_angle() >= kMinSolidAngleSampling &&
-                          view.spherical.solid_angle() <= kMaxSolidAngleSampling));
+  return sampling_ != LightSampling::automatic || glm::dot(t.normal, point_ - t.p0) > 0.0;
+}
+
+EmitterSampler::View EmitterSampler::view_with(const SphericalTriangle& spherical) const {
+  View view;
+  view.spherical = spherical;
+  view.by_solid_angle = spherical.valid() && (sampling_ == LightSampling::solid_angle ||
+                                              (spherical.solid_angle() >= kMinSolidAngleSampling &&
+                                               spherical.solid_angle() <= kMaxSolidAngleSampling));
   return view;
+}
+
+EmitterSampler::View EmitterSampler::view_of(const EmitterTriangle& t) const {
+  if (!needs_spherical(t)) return View{};
+  return view_with(SphericalTriangle(point_, t.p0, t.p1, t.p2));
+}
+
+void EmitterSampler::view_cached_triangles() {
+  // The spherical triangles the cached views need, set up together in lanes.
+  std::array<std::array<Vec3d, 3>, kCachedTriangles> corners;
+  std::array<std::size_t, kCachedTriangles> which;
+  std::size_t count = 0;
+  const std::size_t cached = std::min(kCachedTriangles, emitter_.triangles.size());
+  for (std::size_t i = 0; i < cached; ++i) {
+    const EmitterTriangle& t = emitter_.triangles[i];
+    cache_[i] = View{};
+    if (!needs_spherical(t)) continue;
+    corners[count] = {t.p0, t.p1, t.p2};
+    which[count++] = i;
+  }
+  std::array<SphericalTriangle, kCachedTriangles> spherical;
+  SphericalTriangle::set_up_many(point_, std::span(corners).first(count), spherical);
+  for (std::size_t k = 0; k < count; ++k) cache_[which[k]] = view_with(spherical[k]);
+  cached_ = true;
 }
 
 [[gnu::always_inline]] inline EmitterSampler::Choice EmitterSampler::choose(double uy) const {
@@ -204,10 +230,7 @@ EmitterSampler::View EmitterSampler::view_of(const EmitterTriangle& t) const {
 
 [[gnu::always_inline]] inline const EmitterSampler::View& EmitterSampler::view(std::size_t i, View* uncached) {
   if (i >= kCachedTriangles) return *uncached = view_of(emitter_.triangles[i]);
-  if (!cached_[i]) {
-    cache_[i] = view_of(emitter_.triangles[i]);
-    cached_[i] = true;
-  }
+  if (!cached_) view_cached_triangles();
   return cache_[i];
 }
 

@@ -5,7 +5,8 @@
 // lane (sampling.cpp) gets the lanes' bits. Within 1 ulp of glibc, not bit for bit: the error
 // bounds are asserted in tests/test_area_lights.cpp and what they do to images is in
 // docs/performance.md. The polynomials and the argument reduction are fdlibm's (Sun Microsystems,
-// 1993, freely distributable; as in musl's __sin, __cos and __rem_pio2, and fdlibm's e_pow.c).
+// 1993, freely distributable; as in musl's __sin, __cos and __rem_pio2, and fdlibm's e_pow.c,
+// e_atan2.c and s_atan.c).
 
 #include <cmath>
 #include <cstdint>
@@ -197,6 +198,87 @@ RT_LANE_INLINE void sincos(const V& x, V& sin_x, V& cos_x) {
   const V sine = select(odd, c, s), cosine = select(odd, s, c);
   sin_x = select(q > S::value(1.5), -sine, sine);
   cos_x = select((q > half) & (q < S::value(2.5)), -cosine, cosine);
+}
+
+// atan2(y, x) for y >= 0 (radians, in [0, pi]): fdlibm's e_atan2.c and s_atan.c (Sun
+// Microsystems, 1993) for finite normal y > 0 and x != 0, the branches on the interval of |y / x|
+// taken as selects (each interval's reduction written as (p t - q) / (r + s t), which is the same
+// IEEE operations for its p, q, r, s); y = +0 gives +0 for x >= +0 and pi for x <= -0, x = +-0 with
+// y > 0 gives pi/2, as glibc does. `outside` marks the lanes this does not cover (y < 0, -0,
+// subnormal or not finite; x subnormal or not finite; NaN), whose value is meaningless.
+template <class V, class M>
+RT_LANE_INLINE V atan2_nonnegative(const V& y, const V& x, M& outside) {
+  using S = Splat<V>;
+  const V zero = S::value(0.0), one = S::value(1.0), two52 = S::value(0x1p52);
+  const V ax = abs(x);
+  // atan(t) for t = |y / x| (s_atan.c): t reduced about 0, 0.5, 1, 1.5 or infinity, whose
+  // arctangents are atan_hi + atan_lo.
+  const V t = y / ax;
+  const M below_7_16 = t < S::value(0.4375), below_11_16 = t < S::value(0.6875), below_19_16 = t < S::value(1.1875),
+          below_39_16 = t < S::value(2.4375);
+  const auto by_interval = [&](double small, double half, double unit, double one_and_half, double infinite) {
+    return select(below_7_16, S::value(small),
+                  select(below_11_16, S::value(half),
+                         select(below_19_16, S::value(unit), select(below_39_16, S::value(one_and_half), S::value(infinite)))));
+  };
+  const V p = by_interval(1.0, 2.0, 1.0, 1.0, 0.0), q = by_interval(0.0, 1.0, 1.0, 1.5, 1.0);
+  const V r = by_interval(1.0, 2.0, 1.0, 1.0, 0.0), s = by_interval(0.0, 1.0, 1.0, 1.5, 1.0);
+  const V atan_hi = by_interval(0.0, 4.63647609000806093515e-01, 7.85398163397448278999e-01, 9.82793723247329054082e-01,
+                                1.57079632679489655800e+00);
+  const V atan_lo = by_interval(0.0, 2.26987774529616870924e-17, 3.06161699786838301793e-17, 1.39033110312309984516e-17,
+                                6.12323399573676603587e-17);
+  const V reduced = (p * t - q) / (r + s * t);
+  const V z = reduced * reduced;
+  const V w = z * z;
+  const V s1 = z * (S::value(3.33333333333329318027e-01) +
+                    w * (S::value(1.42857142725034663711e-01) +
+                         w * (S::value(9.09088713343650656196e-02) +
+                              w * (S::value(6.66107313738753120669e-02) +
+                                   w * (S::value(4.97687799461593236017e-02) + w * S::value(1.62858201153657823623e-02))))));
+  const V s2 = w * (S::value(-1.99999999998764832476e-01) +
+                    w * (S::value(-1.11111104054623557880e-01) +
+                         w * (S::value(-7.69187620504482999495e-02) +
+                              w * (S::value(-5.83357013379057348645e-02) + w * S::value(-3.65315727442169155270e-02)))));
+  // Below 7/16 fdlibm returns t - t (s1 + s2); atan_hi = atan_lo = 0 gives those bits.
+  const V atan_t = atan_hi - ((reduced * (s1 + s2) - atan_lo) - reduced);
+
+  // e_atan2.c: the exponents of y and x more than 60 apart give pi/2, or 0 for x < 0; x < 0 takes
+  // pi - atan(t), with pi's tail.
+  const V k = bit_or(shift_right<52>(y), two52) - bit_or(shift_right<52>(ax), two52);
+  const V pi_over_2 = S::value(1.5707963267948965580e+00), pi = S::value(3.1415926535897931160e+00),
+          pi_lo = S::value(1.2246467991473531772e-16);
+  const M negative_x = x < zero;
+  const M huge_ratio = k > S::value(60.0);
+  V angle = select(huge_ratio, pi_over_2 + S::value(0.5) * pi_lo, select(negative_x & (k < S::value(-60.0)), zero, atan_t));
+  angle = select(negative_x & ~huge_ratio, pi - (angle - pi_lo), angle);
+
+  // y = +0: +0 or pi by x's sign bit (+0 | 1.0 is 1.0; -0 | 1.0 is -1.0); x = +-0: pi/2.
+  const M y_zero = y == zero;
+  angle = select(y_zero, select(bit_or(x, one) < zero, pi, zero), select(x == zero, pi_over_2, angle));
+  const V largest = S::value(std::numeric_limits<double>::max()), smallest = S::value(0x1p-1022);
+  const M y_covered = (y_zero & ~(bit_or(y, one) < zero)) | ((y >= smallest) & (largest >= y));
+  const M x_covered = (x == zero) | ((ax >= smallest) & (largest >= ax));
+  outside = ~(y_covered & x_covered);
+  return angle;
+}
+
+// std::atan2(y, x) per lane, within 1 ulp of glibc's for y >= 0 (the bound asserted in
+// tests/test_area_lights.cpp): atan2_nonnegative, its other lanes from glibc.
+RT_LANE_INLINE D4 atan2(const D4& y, const D4& x) {
+  M4 outside;
+  D4 angle = atan2_nonnegative(y, x, outside);
+  if (any(outside)) {
+    double ys[4], xs[4], angles[4];
+    std::int64_t mask[4];
+    store(ys, y);
+    store(xs, x);
+    store(angles, angle);
+    store(mask, outside);
+    for (int i = 0; i < 4; ++i)
+      if (mask[i]) angles[i] = std::atan2(ys[i], xs[i]);
+    load(angle, angles);
+  }
+  return angle;
 }
 
 // x^y for a positive normal x (2^-1022 <= x <= DBL_MAX), |y| <= 2^30 and y log2 x < 1023;

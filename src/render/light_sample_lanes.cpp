@@ -5,6 +5,7 @@
 #include "light_sample_lanes.h"
 
 #include <cmath>
+#include <numbers>
 
 #include "lane_libm.h"
 #include "lane_math.h"
@@ -181,17 +182,71 @@ void powers(const double* x, double y, double* out) {
 #endif
 }
 
+// SphericalTriangle::SphericalTriangle's arithmetic, one triangle per lane; its three interior
+// angles by the lanes' atan2 (the scalar constructor takes this path as well).
+void spherical(const SphericalInput& in, SphericalOutput& out) {
+  using lm::Xyz;
+  const D4 zero{};
+  const auto length = [](const Xyz& v) { return lm::sqrt(lm::dot(v, v)); };
+  const auto divide = [](const Xyz& v, const D4& s) { return Xyz{v.x / s, v.y / s, v.z / s}; };
+  const auto negate = [](const Xyz& v) { return Xyz{-v.x, -v.y, -v.z}; };
+  const Xyz point{lm::broadcast(in.point[0]), lm::broadcast(in.point[1]), lm::broadcast(in.point[2])};
+  Xyz a, b, c;
+  lm::load(a, in.a, 0);
+  lm::load(b, in.b, 0);
+  lm::load(c, in.c, 0);
+  // Unit directions from the point to the vertices.
+  const Xyz da{a.x - point.x, a.y - point.y, a.z - point.z}, db{b.x - point.x, b.y - point.y, b.z - point.z},
+      dc{c.x - point.x, c.y - point.y, c.z - point.z};
+  const D4 la = length(da), lb = length(db), lc = length(dc);
+  const Xyz A = divide(da, la), B = divide(db, lb), C = divide(dc, lc);
+  // The great circles' unit normals; the interior angles between them (angle_between's atan2 of
+  // |u x v| and u . v, v negated: (-n) / l has the bits of -(n / l)).
+  const Xyz n_ab = lm::cross(A, B), n_bc = lm::cross(B, C), n_ca = lm::cross(C, A);
+  const D4 l_ab = length(n_ab), l_bc = length(n_bc), l_ca = length(n_ca);
+  const Xyz u_ab = divide(n_ab, l_ab), u_bc = divide(n_bc, l_bc), u_ca = divide(n_ca, l_ca);
+  const Xyz pairs[3][2] = {{u_ab, negate(u_ca)}, {u_bc, negate(u_ab)}, {u_ca, negate(u_bc)}};
+  Wide<3> sines, cosines;
+  for (int i = 0; i < 3; ++i) {
+    sines.g[i] = length(lm::cross(pairs[i][0], pairs[i][1]));
+    cosines.g[i] = lm::dot(pairs[i][0], pairs[i][1]);
+  }
+  WideMask<3> outside;
+  Wide<3> angles = lm::atan2_nonnegative(sines, cosines, outside);
+  for (int i = 0; i < 3; ++i)
+    if (lm::any(outside.g[i])) angles.g[i] = lm::atan2(sines.g[i], cosines.g[i]);
+  const D4 alpha = angles.g[0];
+  const D4 area = ((alpha + angles.g[1]) + angles.g[2]) - lm::broadcast(std::numbers::pi);
+  const lm::M4 valid = (la > zero) & (lb > zero) & (lc > zero) & (l_ab > zero) & (l_bc > zero) & (l_ca > zero) &
+                       (area > zero);
+  // orthogonal_unit(C, A) = normalize(C - (C . A) A).
+  const D4 c_dot_a = lm::dot(C, A);
+  const Xyz c_perp = lm::normalize(Xyz{C.x - c_dot_a * A.x, C.y - c_dot_a * A.y, C.z - c_dot_a * A.z});
+  D4 sin_alpha, cos_alpha;
+  lm::sincos(alpha, sin_alpha, cos_alpha);
+  const auto kept = [&](const D4& v) { return lm::select(valid, v, zero); };
+  const auto kept3 = [&](const Xyz& v) { return Xyz{kept(v.x), kept(v.y), kept(v.z)}; };
+  lm::store(out.a, 0, kept3(A));
+  lm::store(out.b, 0, kept3(B));
+  lm::store(out.c_perp, 0, kept3(c_perp));
+  lm::store(out.alpha.v, kept(alpha));
+  lm::store(out.cos_alpha.v, kept(cos_alpha));
+  lm::store(out.sin_alpha.v, kept(sin_alpha));
+  lm::store(out.cos_c.v, kept(lm::dot(A, B)));
+  lm::store(out.area.v, kept(area));
+}
+
 }  // namespace (baseline or avx2)
 
 #ifdef RT_LIGHT_SAMPLE_LANES_AVX2
 const Kernels* avx2_kernels() {
-  static const Kernels kernels{&avx2::sample, &avx2::powers};
+  static const Kernels kernels{&avx2::sample, &avx2::powers, &avx2::spherical};
   __builtin_cpu_init();  // idempotent; needed when called before the constructors have run
   return __builtin_cpu_supports("avx2") ? &kernels : nullptr;
 }
 #else
 const Kernels& baseline_kernels() {
-  static const Kernels kernels{&baseline::sample, &baseline::powers};
+  static const Kernels kernels{&baseline::sample, &baseline::powers, &baseline::spherical};
   return kernels;
 }
 

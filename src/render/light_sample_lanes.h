@@ -44,12 +44,29 @@ struct Output {
   alignas(32) std::int64_t valid[kLanes];  // all ones or 0
 };
 
+// SphericalTriangle's set-up (sampling.cpp) for four triangles (a, b, c) seen from one point, one
+// per lane: the unit directions A and B, C's part orthogonal to A (unit), the angle at A (radians)
+// with its cosine and sine, the cosine of side AB and the area (steradians). A lane whose triangle
+// has none (a vertex at the point, the point on a side's line, no positive area) is all zeros.
+struct SphericalInput {
+  SphericalInput() {}
+  double point[3];
+  Vec3Lanes<4> a, b, c;
+};
+struct SphericalOutput {
+  SphericalOutput() {}
+  Vec3Lanes<4> a, b, c_perp;
+  LaneArray<4> alpha, cos_alpha, sin_alpha, cos_c, area;
+};
+
 // One build of the lanes: `sample` computes `count` lanes (<= kLanes) of `in` into `out`;
 // `powers` sets out[k] = pow(x[k], y) for k < kLanes (lane_libm.h's pow: within 1 ulp of glibc's,
-// the same bits in both builds), the highlights of a chunk of samples.
+// the same bits in both builds), the highlights of a chunk of samples; `spherical` sets up four
+// spherical triangles.
 struct Kernels {
   void (*sample)(const Input& in, int count, Output& out);
   void (*powers)(const double* x, double y, double* out);
+  void (*spherical)(const SphericalInput& in, SphericalOutput& out);
 };
 
 const Kernels& baseline_kernels();

@@ -1,10 +1,12 @@
 #include "rt/render/sampling.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <numbers>
 
 #include "lane_libm.h"
+#include "light_sample_lanes.h"
 
 namespace rt {
 
@@ -82,11 +84,6 @@ std::uint32_t permute(std::uint32_t i, std::uint32_t length, std::uint32_t patte
   i ^= i >> 17;
   i *= 1u | pattern >> 18;
   return double(i) * 0x1p-32;
-}
-
-// The angle between unit vectors, accurate over all of [0, pi] (unlike acos near 0 and pi).
-double angle_between(const Vec3d& a, const Vec3d& b) {
-  return std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b));
 }
 
 // sin and cos of `angle` (radians) by the lanes' sincos (lane_libm.h), so that
@@ -177,29 +174,44 @@ double triangle_solid_angle(const Vec3d& p, const Vec3d& a, const Vec3d& b, cons
 }
 
 SphericalTriangle::SphericalTriangle(const Vec3d& p, const Vec3d& a, const Vec3d& b, const Vec3d& c) {
-  // Unit directions from p to the vertices.
-  const Vec3d da = a - p, db = b - p, dc = c - p;
-  const double la = glm::length(da), lb = glm::length(db), lc = glm::length(dc);
-  if (!(la > 0.0 && lb > 0.0 && lc > 0.0)) return;
-  const Vec3d A = da / la, B = db / lb, C = dc / lc;
-  // Normals of the great circles through each side; a zero one means two directions coincide or
-  // are opposite (p on a side's line).
-  const Vec3d n_ab = glm::cross(A, B), n_bc = glm::cross(B, C), n_ca = glm::cross(C, A);
-  const double l_ab = glm::length(n_ab), l_bc = glm::length(n_bc), l_ca = glm::length(n_ca);
-  if (!(l_ab > 0.0 && l_bc > 0.0 && l_ca > 0.0)) return;
-  // Interior angles at A, B, C: the angles between the planes of the sides that meet there.
-  const double alpha = angle_between(n_ab / l_ab, -n_ca / l_ca);
-  const double beta = angle_between(n_bc / l_bc, -n_ab / l_ab);
-  const double gamma = angle_between(n_ca / l_ca, -n_bc / l_bc);
-  const double area = alpha + beta + gamma - std::numbers::pi;
-  if (!(area > 0.0)) return;
-  A_ = A;
-  B_ = B;
-  C_perp_ = orthogonal_unit(C, A);
-  alpha_ = alpha;
-  sincos_as_lanes(alpha, sin_alpha_, cos_alpha_);  // a quarter of glibc's time for the pair
-  cos_c_ = glm::dot(A, B);
-  area_ = area;
+  const std::array<Vec3d, 3> corners{a, b, c};
+  set_up_many(p, std::span(&corners, 1), std::span(this, 1));
+}
+
+// The unit directions A, B, C from p to the corners; the interior angles at A, B and C between
+// the planes of the sides that meet there (each atan2(|u x v|, u . v) of the planes' unit normals,
+// accurate over all of [0, pi], unlike acos; the lanes' atan2, within 1 ulp of glibc's); the area
+// alpha + beta + gamma - pi (Girard). A vertex at p, p on a side's line or no positive area leave
+// the triangle invalid (all zeros). Arithmetic in light_sample_lanes.cpp.
+void SphericalTriangle::set_up_many(const Vec3d& p, std::span<const std::array<Vec3d, 3>> corners,
+                                    std::span<SphericalTriangle> out) {
+  namespace lanes = light_sample_lanes;
+  static const lanes::Kernels& kernels = lanes::best_kernels();
+  assert(corners.size() <= 4 && out.size() >= corners.size());
+  if (corners.empty()) return;
+  lanes::SphericalInput in;
+  for (int axis = 0; axis < 3; ++axis) in.point[axis] = p[axis];
+  for (std::size_t i = 0; i < 4; ++i) {
+    const std::array<Vec3d, 3>& t = corners[std::min(i, corners.size() - 1)];  // unused lanes repeat the last
+    for (auto [to, from] : {std::pair{&in.a, &t[0]}, std::pair{&in.b, &t[1]}, std::pair{&in.c, &t[2]}}) {
+      to->x.v[i] = from->x;
+      to->y.v[i] = from->y;
+      to->z.v[i] = from->z;
+    }
+  }
+  lanes::SphericalOutput lane;
+  kernels.spherical(in, lane);
+  for (std::size_t i = 0; i < corners.size(); ++i) {
+    SphericalTriangle& s = out[i];
+    s.A_ = {lane.a.x.v[i], lane.a.y.v[i], lane.a.z.v[i]};
+    s.B_ = {lane.b.x.v[i], lane.b.y.v[i], lane.b.z.v[i]};
+    s.C_perp_ = {lane.c_perp.x.v[i], lane.c_perp.y.v[i], lane.c_perp.z.v[i]};
+    s.alpha_ = lane.alpha.v[i];
+    s.cos_alpha_ = lane.cos_alpha.v[i];
+    s.sin_alpha_ = lane.sin_alpha.v[i];
+    s.cos_c_ = lane.cos_c.v[i];
+    s.area_ = lane.area.v[i];
+  }
 }
 
 Vec3d SphericalTriangle::sample(Vec2d u) const {

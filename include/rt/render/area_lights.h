@@ -127,7 +127,13 @@ class EmitterSampler {
     bool by_solid_angle = false;
     SphericalTriangle spherical;
   };
+  // Whether `triangle` is sampled by solid angle if its spherical triangle allows, and the view
+  // that spherical triangle gives; view_of does both for one triangle. The first kCachedTriangles
+  // triangles' views are set up together, on the first sample that needs one of them.
+  bool needs_spherical(const EmitterTriangle& triangle) const;
+  View view_with(const SphericalTriangle& spherical) const;
   View view_of(const EmitterTriangle& triangle) const;
+  void view_cached_triangles();
   // The triangle that u.y picks through the cdf, its probability and u.y rescaled to its interval.
   struct Choice {
     std::size_t triangle = 0;
@@ -148,7 +154,7 @@ class EmitterSampler {
   Vec3d point_;
   LightSampling sampling_;
   std::array<View, kCachedTriangles> cache_{};
-  std::array<bool, kCachedTriangles> cached_{};
+  bool cached_ = false;  // cache_ is set
   std::vector<View> uncached_;  // sample_many's views of triangles past the cache, one per lane
 };
 

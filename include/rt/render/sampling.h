@@ -4,6 +4,7 @@
 // solid angle a triangle subtends. Double precision throughout; no state, so every sample is a
 // function of its indices and the image does not depend on thread count or tile order.
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <optional>
@@ -51,6 +52,11 @@ class SphericalTriangle {
  public:
   SphericalTriangle() = default;
   SphericalTriangle(const Vec3d& p, const Vec3d& a, const Vec3d& b, const Vec3d& c);
+  // The spherical triangles of up to four triangles (corners[i], world space) seen from p, set up
+  // together in SIMD lanes: out[i] gets SphericalTriangle(p, corners[i][0], corners[i][1],
+  // corners[i][2]) bit for bit (the constructor takes this path with one triangle).
+  static void set_up_many(const Vec3d& p, std::span<const std::array<Vec3d, 3>> corners,
+                          std::span<SphericalTriangle> out);
 
   bool valid() const { return area_ > 0.0; }
   // Its area on the unit sphere (steradians, by Girard's theorem): the pdf of a direction is 1 / area.
