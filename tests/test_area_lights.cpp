@@ -175,8 +175,13 @@ TEST_CASE("EmitterSampler::sample_many: sample's bits in every lane, whatever th
   lamp.models.push_back({std::make_shared<const rt::TriangleMesh>(rt::make_sphere_mesh(0.3, 12, 6)), 1});
   ball.nodes.push_back(lamp);
   ball.nodes[0].children.push_back(1);
+  // An octagon: six triangles of unequal power, past the four cached views, with the lanes' choice.
+  std::vector<Vec3f> octagon;
+  for (int i = 0; i < 8; ++i)
+    octagon.emplace_back(std::cos(i * 0.785f) * (1.0f + 0.1f * float(i)), std::sin(i * 0.785f), 1.0f);
+  rt::Scene fan = floor_and_emitter(octagon, Vec3d(2.0), diffuse_material(Vec3d(0.5)));
   int compared = 0, invalid = 0, unlit = 0;
-  for (const rt::Scene* scene : {&quad, &ball}) {
+  for (const rt::Scene* scene : {&quad, &ball, &fan}) {
     const rt::FlatScene flat = rt::flatten_scene(*scene);
     const rt::AreaLights lights = rt::collect_area_lights(*scene, flat);
     REQUIRE(lights.emitters.size() == 1);

@@ -11,6 +11,7 @@
 #include "rt/core/error.h"
 #include "rt/core/memory.h"
 #include "rt/render/sampling.h"
+#include "lane_math.h"
 #include "light_sample_lanes.h"
 
 namespace rt {
@@ -228,6 +229,39 @@ void EmitterSampler::view_cached_triangles() {
   return choice;
 }
 
+void EmitterSampler::choose_many(std::span<const double> uy, std::span<Choice> out) const {
+  namespace lm = lane_math;
+  const std::vector<double>& cdf = emitter_.cdf;
+  if (cdf.size() > 16 || uy.size() % 4 != 0) {
+    for (std::size_t k = 0; k < uy.size(); ++k) out[k] = choose(uy[k]);
+    return;
+  }
+  // choose's steps four lanes at a time: the index counted as there, std::min(index, last) as
+  // (last < index) ? last : index, the interval's ends selected entry by entry. The divisions of
+  // a group overlap instead of each stalling the comparison of std::clamp after it.
+  const lm::D4 zero{}, one = lm::broadcast(1.0), last = lm::broadcast(double(cdf.size() - 1));
+  for (std::size_t g = 0; g < uy.size(); g += 4) {
+    lm::D4 u;
+    lm::load(u, uy.data() + g);
+    lm::D4 index{};
+    for (const double c : cdf) index += lm::select(u < lm::broadcast(c), zero, one);
+    const lm::D4 triangle = lm::select(last < index, last, index);
+    lm::D4 low{}, high = lm::broadcast(cdf[0]);
+    for (std::size_t j = 1; j < cdf.size(); ++j) {
+      const lm::M4 here = triangle == lm::broadcast(double(j));
+      low = lm::select(here, lm::broadcast(cdf[j - 1]), low);
+      high = lm::select(here, lm::broadcast(cdf[j]), high);
+    }
+    const lm::D4 probability = high - low;
+    const lm::D4 v = lm::clamp((u - low) / probability, zero, lm::broadcast(1.0 - 0x1p-53));
+    double triangles[4], probabilities[4], vs[4];
+    lm::store(triangles, triangle);
+    lm::store(probabilities, probability);
+    lm::store(vs, v);
+    for (std::size_t i = 0; i < 4; ++i) out[g + i] = {std::size_t(triangles[i]), probabilities[i], vs[i]};
+  }
+}
+
 [[gnu::always_inline]] inline const EmitterSampler::View& EmitterSampler::view(std::size_t i, View* uncached) {
   if (i >= kCachedTriangles) return *uncached = view_of(emitter_.triangles[i]);
   if (!cached_) view_cached_triangles();
@@ -296,11 +330,12 @@ void EmitterSampler::sample_many(std::span<const Vec2d> u, std::span<LightSample
     // Gather each lane's triangle and warp; the lanes past `count` up to a multiple of 4 repeat
     // the last one.
     const int padded = (count + 3) / 4 * 4;
-    // The choices first, in a loop of their own: their divisions overlap instead of each one
-    // stalling the lane that needs it (and a choice read back right after it was written stalled
-    // store forwarding).
+    // The choices first, in a pass of their own (a choice read back right after it was written
+    // stalled store forwarding).
     const auto u_of = [&](int k) { return u[first + std::size_t(std::min(k, count - 1))]; };
-    for (int k = 0; k < padded; ++k) choices[std::size_t(k)] = choose(u_of(k).y);
+    std::array<double, lanes::kLanes> uy;
+    for (int k = 0; k < padded; ++k) uy[std::size_t(k)] = u_of(k).y;
+    choose_many(std::span(uy).first(std::size_t(padded)), choices);
     for (int k = 0; k < padded; ++k) {
       const Vec2d uk = u_of(k);
       const Choice& choice = choices[std::size_t(k)];

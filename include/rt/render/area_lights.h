@@ -140,6 +140,8 @@ class EmitterSampler {
     double probability = 0.0, v = 0.0;
   };
   Choice choose(double uy) const;
+  // choose(uy[k]) into out[k], bit for bit, in SIMD lanes for short cdfs.
+  void choose_many(std::span<const double> uy, std::span<Choice> out) const;
   // How triangle i is seen: from the cache for the first kCachedTriangles, else into *uncached.
   const View& view(std::size_t i, View* uncached);
   // A valid sample's radiance over pdf and texcoord, from its surface point, direction and
