@@ -397,7 +397,14 @@ Ray shadow_ray_to_sample(const RayOffset& policy, const Vec3f& origin, const Lig
   Ray ray;
   ray.origin = origin;
   ray.direction = length > 0.0 ? Vec3f(span / length) : Vec3f(sample.direction);
-  ray.tfar = length > 0.0 ? static_cast<float>(shadow_ray_tfar(policy, Vec3d(origin), Vec3d(target))) : 0.0f;
+  // shadow_ray_tfar(policy, origin, target), whose distance is `length` (the same operations): not
+  // computed twice.
+  const double tfar = policy.mode == RayOffset::Mode::fixed
+                          ? length - policy.epsilon
+                          : ray_offset_detail::robust_shadow_tfar(
+                                length, std::max({std::abs(double(target.x)), std::abs(double(target.y)),
+                                                  std::abs(double(target.z))}));
+  ray.tfar = length > 0.0 ? static_cast<float>(tfar) : 0.0f;
   return ray;
 }
 
