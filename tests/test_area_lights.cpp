@@ -468,6 +468,55 @@ TEST_CASE("SphericalTriangle::set_up_many: the constructor's bits in every lane,
   CHECK(invalid > 100);
 }
 
+// The facing kernel (n.l and the highlight of a chunk of samples, shade.cpp's area-light terms)
+// gives the scalar formulas' bits, the highlight being the lanes' pow of the scalar n.h, in both
+// builds; unneeded lanes and lanes facing away get a power of 1.
+TEST_CASE("light sample lanes: facing gives the scalar n.l and the pow of the scalar n.h") {
+  namespace lanes = rt::light_sample_lanes;
+  std::mt19937_64 random(2030);
+  std::uniform_real_distribution<double> coordinate(-1.0, 1.0);
+  const auto unit = [&] { return glm::normalize(Vec3d(coordinate(random), coordinate(random), coordinate(random))); };
+  int highlighted = 0;
+  for (int round = 0; round < 3000; ++round) {
+    lanes::FacingInput in;
+    const Vec3d normal = unit(), to_eye = round % 5 == 0 ? -normal : unit();  // half vector zero at times
+    for (int axis = 0; axis < 3; ++axis) {
+      in.normal[axis] = normal[axis];
+      in.to_eye[axis] = to_eye[axis];
+    }
+    in.shininess = round % 4 == 0 ? 0.0 : std::floor(coordinate(random) * 100.0 + 101.0);
+    in.highlights = round % 9 != 0;
+    std::array<Vec3d, lanes::kLanes> directions;
+    for (int i = 0; i < lanes::kLanes; ++i) {
+      directions[std::size_t(i)] = i % 7 == 3 ? -to_eye : unit();
+      in.direction.x.v[i] = directions[std::size_t(i)].x;
+      in.direction.y.v[i] = directions[std::size_t(i)].y;
+      in.direction.z.v[i] = directions[std::size_t(i)].z;
+      in.needed[i] = random() % 5 ? -1 : 0;
+    }
+    std::array<double, lanes::kLanes> expected_n_dot_l, n_dot_h, expected_power;
+    for (std::size_t i = 0; i < directions.size(); ++i) {
+      expected_n_dot_l[i] = glm::dot(normal, directions[i]);
+      const Vec3d half_sum = directions[i] + to_eye;
+      const double half_length = glm::length(half_sum);
+      n_dot_h[i] = in.needed[i] && expected_n_dot_l[i] > 0.0
+                       ? (half_length > 0.0 ? std::max(glm::dot(normal, half_sum) / half_length, 0.0) : 0.0)
+                       : 1.0;
+    }
+    lanes::baseline_kernels().powers(n_dot_h.data(), in.shininess, expected_power.data());
+    if (!in.highlights) expected_power.fill(1.0);
+    for (const lanes::Kernels* kernels : {&lanes::baseline_kernels(), lanes::avx2_kernels()}) {
+      if (!kernels) continue;
+      lanes::FacingOutput out;
+      kernels->facing(in, out);
+      REQUIRE(std::memcmp(out.n_dot_l.v, expected_n_dot_l.data(), sizeof out.n_dot_l.v) == 0);
+      REQUIRE(std::memcmp(out.power.v, expected_power.data(), sizeof out.power.v) == 0);
+    }
+    for (double p : expected_power) highlighted += p != 1.0;
+  }
+  CHECK(highlighted > 10000);
+}
+
 TEST_CASE("sample_triangle_uniform: barycentrics on the triangle, uniform (mean at the centroid)") {
   constexpr int n = 256;
   Vec3d mean(0.0);

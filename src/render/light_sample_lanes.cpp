@@ -236,17 +236,41 @@ void spherical(const SphericalInput& in, SphericalOutput& out) {
   lm::store(out.area.v, kept(area));
 }
 
+void facing(const FacingInput& in, FacingOutput& out) {
+  using lm::Xyz;
+  const D4 zero{}, one = lm::broadcast(1.0);
+  const Xyz normal{lm::broadcast(in.normal[0]), lm::broadcast(in.normal[1]), lm::broadcast(in.normal[2])};
+  const Xyz to_eye{lm::broadcast(in.to_eye[0]), lm::broadcast(in.to_eye[1]), lm::broadcast(in.to_eye[2])};
+  alignas(32) double n_dot_h[kLanes];
+  for (int g = 0; g < kLanes; g += 4) {
+    Xyz direction;
+    lm::load(direction, in.direction, g);
+    const D4 n_dot_l = lm::dot(normal, direction);
+    lm::store(out.n_dot_l.v + g, n_dot_l);
+    const Xyz half_sum{direction.x + to_eye.x, direction.y + to_eye.y, direction.z + to_eye.z};
+    const D4 half_length = lm::sqrt(lm::dot(half_sum, half_sum));
+    const D4 cosine = lm::select(half_length > zero, lm::max(lm::dot(normal, half_sum) / half_length, zero), zero);
+    lm::M4 needed;
+    lm::load(needed, in.needed + g);
+    lm::store(n_dot_h + g, lm::select(needed & (n_dot_l > zero), cosine, one));
+  }
+  if (in.highlights)
+    powers(n_dot_h, in.shininess, out.power.v);
+  else
+    for (double& p : out.power.v) p = 1.0;
+}
+
 }  // namespace (baseline or avx2)
 
 #ifdef RT_LIGHT_SAMPLE_LANES_AVX2
 const Kernels* avx2_kernels() {
-  static const Kernels kernels{&avx2::sample, &avx2::powers, &avx2::spherical};
+  static const Kernels kernels{&avx2::sample, &avx2::powers, &avx2::spherical, &avx2::facing};
   __builtin_cpu_init();  // idempotent; needed when called before the constructors have run
   return __builtin_cpu_supports("avx2") ? &kernels : nullptr;
 }
 #else
 const Kernels& baseline_kernels() {
-  static const Kernels kernels{&baseline::sample, &baseline::powers, &baseline::spherical};
+  static const Kernels kernels{&baseline::sample, &baseline::powers, &baseline::spherical, &baseline::facing};
   return kernels;
 }
 

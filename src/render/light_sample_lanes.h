@@ -59,14 +59,32 @@ struct SphericalOutput {
   LaneArray<4> alpha, cos_alpha, sin_alpha, cos_c, area;
 };
 
+// The Blinn-Phong factors of a chunk of light samples seen from one shading point (shade.cpp's
+// area-light terms; world space): per lane n.l = normal . direction and, where `needed` and
+// n.l > 0, the highlight max(n.h, 0)^shininess, h the normalised direction + to_eye (elsewhere 1),
+// with shade.cpp's operations in its order.
+struct FacingInput {
+  FacingInput() {}
+  double normal[3], to_eye[3];  // unit
+  double shininess;
+  bool highlights = true;  // false: no lane needs its highlight (all powers 1)
+  Vec3 direction;          // unit
+  alignas(32) std::int64_t needed[kLanes];  // all ones or 0
+};
+struct FacingOutput {
+  FacingOutput() {}
+  Lanes n_dot_l, power;
+};
+
 // One build of the lanes: `sample` computes `count` lanes (<= kLanes) of `in` into `out`;
 // `powers` sets out[k] = pow(x[k], y) for k < kLanes (lane_libm.h's pow: within 1 ulp of glibc's,
-// the same bits in both builds), the highlights of a chunk of samples; `spherical` sets up four
-// spherical triangles.
+// the same bits in both builds); `spherical` sets up four spherical triangles; `facing` computes
+// the n.l and highlights of a chunk of samples.
 struct Kernels {
   void (*sample)(const Input& in, int count, Output& out);
   void (*powers)(const double* x, double y, double* out);
   void (*spherical)(const SphericalInput& in, SphericalOutput& out);
+  void (*facing)(const FacingInput& in, FacingOutput& out);
 };
 
 const Kernels& baseline_kernels();

@@ -226,13 +226,21 @@ template <class Shadows>
   };
   SideOrigins origins{context.ray_offset, lit.surface};
   // The pattern's points and their light samples, drawn together a chunk at a time, with their n.l
-  // and the highlights max(n.h, 0)^sigma (lanes' pow, below).
-  constexpr std::size_t kChunk = light_sample_lanes::kLanes;
+  // and highlights max(n.h, 0)^sigma computed in lanes.
+  namespace lanes = light_sample_lanes;
+  static const lanes::Kernels& kernels = lanes::best_kernels();
+  constexpr std::size_t kChunk = lanes::kLanes;
   std::array<Vec2d, kChunk> points;
   std::array<LightSample, kChunk> drawn;
-  std::array<double, kChunk> n_dot_l, n_dot_h, highlight_power;
   const bool highlights = lit.terms.specular || !prune;
-  static const light_sample_lanes::Kernels& lanes = light_sample_lanes::best_kernels();
+  lanes::FacingInput facing;
+  for (int axis = 0; axis < 3; ++axis) {
+    facing.normal[axis] = lit.normal[axis];
+    facing.to_eye[axis] = lit.to_eye[axis];
+  }
+  facing.shininess = lit.shininess;
+  facing.highlights = highlights;
+  lanes::FacingOutput factors;
   for (std::size_t e = 0; e < area_lights.emitters.size(); ++e) {
     const Emitter& emitter = area_lights.emitters[e];
     const std::size_t slot = context.scene.lights.size() + e;
@@ -261,16 +269,14 @@ template <class Shadows>
         cmj_samples(k, chunk, samples, pattern);
         sampler.sample_many(chunk, drawn);
         for (std::size_t i = 0; i < kChunk; ++i) {
-          const LightSample& sample = drawn[i];
-          n_dot_h[i] = 1.0;  // a harmless pow argument where the term needs none
-          if (i >= chunk.size() || !sample.valid) continue;
-          n_dot_l[i] = glm::dot(lit.normal, sample.direction);
-          if (all_zero || !(n_dot_l[i] > 0.0)) continue;
-          const Vec3d half_sum = sample.direction + lit.to_eye;
-          const double half_length = glm::length(half_sum);
-          n_dot_h[i] = half_length > 0.0 ? std::max(glm::dot(lit.normal, half_sum) / half_length, 0.0) : 0.0;
+          const bool used = i < chunk.size() && drawn[i].valid;
+          const Vec3d& direction = used ? drawn[i].direction : lit.normal;  // any finite direction
+          facing.direction.x.v[i] = direction.x;
+          facing.direction.y.v[i] = direction.y;
+          facing.direction.z.v[i] = direction.z;
+          facing.needed[i] = used && !all_zero ? -1 : 0;
         }
-        if (highlights) lanes.powers(n_dot_h.data(), lit.shininess, highlight_power.data());
+        kernels.facing(facing, factors);
       }
       const LightSample& sample = drawn[j];
       if (!sample.valid) {
@@ -278,12 +284,13 @@ template <class Shadows>
         continue;
       }
       Vec3d term(0.0);
-      if (!all_zero && n_dot_l[j] > 0.0) {
-        const Vec3d highlight = highlights ? lit.specular * highlight_power[j] : Vec3d(0.0);
+      const double n_dot_l = factors.n_dot_l.v[j];
+      if (!all_zero && n_dot_l > 0.0) {
+        const Vec3d highlight = highlights ? lit.specular * factors.power.v[j] : Vec3d(0.0);
         const Vec3d radiance = sample.texcoord ? sample.radiance_over_pdf *
                                                      Vec3d(context.textures->emission(emitter.material, *sample.texcoord))
                                                : sample.radiance_over_pdf;
-        term = radiance * (lit.diffuse * n_dot_l[j] + highlight) * scale;
+        term = radiance * (lit.diffuse * n_dot_l + highlight) * scale;
       }
       if (prune && term == Vec3d(0.0)) {
         skip(SkipRule::sample_zero, e, 1);
