@@ -60,18 +60,32 @@ RT_WIDE_BINARY(WideMask, &, WideMask)
 RT_WIDE_BINARY(WideMask, |, WideMask)
 #undef RT_WIDE_BINARY
 
-template <int N>
-RT_LANE_INLINE Wide<N> operator-(const Wide<N>& a) {
-  Wide<N> r;
-  RT_WIDE_EACH(r.g[i] = -a.g[i]);
-  return r;
-}
-template <int N>
-RT_LANE_INLINE WideMask<N> operator~(const WideMask<N>& m) {
-  WideMask<N> r;
-  RT_WIDE_EACH(r.g[i] = ~m.g[i]);
-  return r;
-}
+// Unary and binary functions group by group: f(a) and f(a, b) of lane_math.h's D4 or M4.
+#define RT_WIDE_UNARY(Result, name, Operand)                   \
+  template <int N>                                             \
+  RT_LANE_INLINE Result<N> name(const Operand<N>& a) {         \
+    Result<N> r;                                               \
+    RT_WIDE_EACH(r.g[i] = name(a.g[i]));                       \
+    return r;                                                  \
+  }
+#define RT_WIDE_FUNCTION(name)                                         \
+  template <int N>                                                     \
+  RT_LANE_INLINE Wide<N> name(const Wide<N>& a, const Wide<N>& b) {    \
+    Wide<N> r;                                                         \
+    RT_WIDE_EACH(r.g[i] = name(a.g[i], b.g[i]));                       \
+    return r;                                                          \
+  }
+RT_WIDE_UNARY(Wide, operator-, Wide)
+RT_WIDE_UNARY(WideMask, operator~, WideMask)
+RT_WIDE_UNARY(Wide, abs, Wide)
+RT_WIDE_UNARY(Wide, sqrt, Wide)
+RT_WIDE_UNARY(Wide, round_to_integer, Wide)
+RT_WIDE_FUNCTION(max)
+RT_WIDE_FUNCTION(bit_and)
+RT_WIDE_FUNCTION(bit_or)
+#undef RT_WIDE_UNARY
+#undef RT_WIDE_FUNCTION
+
 template <int N>
 RT_LANE_INLINE Wide<N> select(const WideMask<N>& m, const Wide<N>& a, const Wide<N>& b) {
   Wide<N> r;
@@ -79,45 +93,9 @@ RT_LANE_INLINE Wide<N> select(const WideMask<N>& m, const Wide<N>& a, const Wide
   return r;
 }
 template <int N>
-RT_LANE_INLINE Wide<N> abs(const Wide<N>& a) {
-  Wide<N> r;
-  RT_WIDE_EACH(r.g[i] = abs(a.g[i]));
-  return r;
-}
-template <int N>
-RT_LANE_INLINE Wide<N> sqrt(const Wide<N>& a) {
-  Wide<N> r;
-  RT_WIDE_EACH(r.g[i] = sqrt(a.g[i]));
-  return r;
-}
-template <int N>
-RT_LANE_INLINE Wide<N> max(const Wide<N>& a, const Wide<N>& b) {
-  Wide<N> r;
-  RT_WIDE_EACH(r.g[i] = max(a.g[i], b.g[i]));
-  return r;
-}
-template <int N>
-RT_LANE_INLINE Wide<N> round_to_integer(const Wide<N>& a) {
-  Wide<N> r;
-  RT_WIDE_EACH(r.g[i] = round_to_integer(a.g[i]));
-  return r;
-}
-template <int N>
 RT_LANE_INLINE Wide<N> clamp(const Wide<N>& v, const Wide<N>& lo, const Wide<N>& hi) {
   Wide<N> r;
   RT_WIDE_EACH(r.g[i] = clamp(v.g[i], lo.g[i], hi.g[i]));
-  return r;
-}
-template <int N>
-RT_LANE_INLINE Wide<N> bit_and(const Wide<N>& a, const Wide<N>& b) {
-  Wide<N> r;
-  RT_WIDE_EACH(r.g[i] = bit_and(a.g[i], b.g[i]));
-  return r;
-}
-template <int N>
-RT_LANE_INLINE Wide<N> bit_or(const Wide<N>& a, const Wide<N>& b) {
-  Wide<N> r;
-  RT_WIDE_EACH(r.g[i] = bit_or(a.g[i], b.g[i]));
   return r;
 }
 template <int bits, int N>
