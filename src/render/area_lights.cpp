@@ -170,7 +170,13 @@ bool emitter_below_horizon(const Emitter& emitter, const Vec3d& point, const Vec
 
 EmitterSampler::EmitterSampler(const Emitter& emitter, const FlatScene& flat, const Scene& scene,
                                const TextureSampler* textures, const Vec3d& point, LightSampling sampling)
-    : emitter_(emitter), flat_(flat), scene_(scene), textures_(textures), point_(point), sampling_(sampling) {}
+    : emitter_(emitter),
+      flat_(flat),
+      scene_(scene),
+      textures_(textures),
+      emission_texture_(textures && textures->has_emission(emitter.material) && has_texcoords(flat)),
+      point_(point),
+      sampling_(sampling) {}
 
 bool EmitterSampler::needs_spherical(const EmitterTriangle& t) const {
   if (sampling_ == LightSampling::area) return false;
@@ -178,18 +184,26 @@ bool EmitterSampler::needs_spherical(const EmitterTriangle& t) const {
   return sampling_ != LightSampling::automatic || glm::dot(t.normal, point_ - t.p0) > 0.0;
 }
 
-EmitterSampler::View EmitterSampler::view_with(const SphericalTriangle& spherical) const {
+EmitterSampler::View EmitterSampler::view_with(std::size_t triangle, const SphericalTriangle& spherical) const {
   View view;
   view.spherical = spherical;
   view.by_solid_angle = spherical.valid() && (sampling_ == LightSampling::solid_angle ||
                                               (spherical.solid_angle() >= kMinSolidAngleSampling &&
                                                spherical.solid_angle() <= kMaxSolidAngleSampling));
+  if (view.by_solid_angle) {
+    // weigh's value: the triangle's probability as choose computes it.
+    const std::vector<double>& cdf = emitter_.cdf;
+    const double probability = cdf[triangle] - (triangle > 0 ? cdf[triangle - 1] : 0.0);
+    view.radiance_over_pdf =
+        Vec3d(scene_.materials[emitter_.material].emission) * (spherical.solid_angle() / probability);
+  }
   return view;
 }
 
-EmitterSampler::View EmitterSampler::view_of(const EmitterTriangle& t) const {
+EmitterSampler::View EmitterSampler::view_of(std::size_t triangle) const {
+  const EmitterTriangle& t = emitter_.triangles[triangle];
   if (!needs_spherical(t)) return View{};
-  return view_with(SphericalTriangle(point_, t.p0, t.p1, t.p2));
+  return view_with(triangle, SphericalTriangle(point_, t.p0, t.p1, t.p2));
 }
 
 void EmitterSampler::view_cached_triangles() {
@@ -207,7 +221,7 @@ void EmitterSampler::view_cached_triangles() {
   }
   std::array<SphericalTriangle, kCachedTriangles> spherical;
   SphericalTriangle::set_up_many(point_, std::span(corners).first(count), spherical);
-  for (std::size_t k = 0; k < count; ++k) cache_[which[k]] = view_with(spherical[k]);
+  for (std::size_t k = 0; k < count; ++k) cache_[which[k]] = view_with(which[k], spherical[k]);
   cached_ = true;
 }
 
@@ -263,7 +277,7 @@ void EmitterSampler::choose_many(std::span<const double> uy, std::span<Choice> o
 }
 
 [[gnu::always_inline]] inline const EmitterSampler::View& EmitterSampler::view(std::size_t i, View* uncached) {
-  if (i >= kCachedTriangles) return *uncached = view_of(emitter_.triangles[i]);
+  if (i >= kCachedTriangles) return *uncached = view_of(i);
   if (!cached_) view_cached_triangles();
   return cache_[i];
 }
@@ -273,15 +287,17 @@ void EmitterSampler::choose_many(std::span<const double> uy, std::span<Choice> o
   const double cos_emitter = -glm::dot(t.normal, sample.direction);
   if (!(cos_emitter > 0.0)) return;  // the triangle's back faces the point: no radiance
 
+  if (emission_texture_) sample.texcoord = texcoords_at(flat_, t.primitive, float(b.x), float(b.y), float(b.z));
+  // Solid-angle density of the direction: probability / solid angle (the view's, once per
+  // triangle), or by area probability / area * r^2 / cos(theta') (the change of measure
+  // dA = r^2 / cos(theta') d omega).
+  if (view.by_solid_angle) {
+    sample.radiance_over_pdf = view.radiance_over_pdf;
+    return;
+  }
   const Vec3d radiance(scene_.materials[emitter_.material].emission);
-  if (textures_ && textures_->has_emission(emitter_.material) && has_texcoords(flat_))
-    sample.texcoord = texcoords_at(flat_, t.primitive, float(b.x), float(b.y), float(b.z));
-  // Solid-angle density of the direction: probability / solid angle, or by area
-  // probability / area * r^2 / cos(theta') (the change of measure dA = r^2 / cos(theta') d omega).
   sample.radiance_over_pdf =
-      view.by_solid_angle
-          ? radiance * (view.spherical.solid_angle() / choice.probability)
-          : radiance * (t.area * cos_emitter / (choice.probability * sample.distance * sample.distance));
+      radiance * (t.area * cos_emitter / (choice.probability * sample.distance * sample.distance));
 }
 
 LightSample EmitterSampler::sample(Vec2d u) {

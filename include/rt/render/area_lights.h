@@ -126,13 +126,16 @@ class EmitterSampler {
   struct View {  // the triangle as seen from the point
     bool by_solid_angle = false;
     SphericalTriangle spherical;
+    // Where by_solid_angle: the emission over the pdf of a direction, the same for every sample
+    // of the triangle (linear RGB, radiance x steradians; weigh's value).
+    Vec3d radiance_over_pdf{0.0};
   };
   // Whether `triangle` is sampled by solid angle if its spherical triangle allows, and the view
   // that spherical triangle gives; view_of does both for one triangle. The first kCachedTriangles
   // triangles' views are set up together, on the first sample that needs one of them.
   bool needs_spherical(const EmitterTriangle& triangle) const;
-  View view_with(const SphericalTriangle& spherical) const;
-  View view_of(const EmitterTriangle& triangle) const;
+  View view_with(std::size_t triangle, const SphericalTriangle& spherical) const;
+  View view_of(std::size_t triangle) const;
   void view_cached_triangles();
   // The triangle that u.y picks through the cdf, its probability and u.y rescaled to its interval.
   struct Choice {
@@ -153,6 +156,7 @@ class EmitterSampler {
   const FlatScene& flat_;
   const Scene& scene_;
   const TextureSampler* textures_;
+  bool emission_texture_;  // the emitter's emission has a texture the samples look up
   Vec3d point_;
   LightSampling sampling_;
   std::array<View, kCachedTriangles> cache_{};
