@@ -117,17 +117,17 @@ template <class V>
 struct Splat;
 template <>
 struct Splat<D4> {
-  static D4 value(double x) { return broadcast(x); }
-  static D4 bits(std::uint64_t b) { return from_bits(b); }
+  RT_LANE_INLINE static D4 value(double x) { return broadcast(x); }
+  RT_LANE_INLINE static D4 bits(std::uint64_t b) { return from_bits(b); }
 };
 template <int N>
 struct Splat<Wide<N>> {
-  static Wide<N> value(double x) {
+  RT_LANE_INLINE static Wide<N> value(double x) {
     Wide<N> r;
     for (D4& g : r.g) g = broadcast(x);
     return r;
   }
-  static Wide<N> bits(std::uint64_t b) {
+  RT_LANE_INLINE static Wide<N> bits(std::uint64_t b) {
     Wide<N> r;
     for (D4& g : r.g) g = from_bits(b);
     return r;

@@ -1,6 +1,7 @@
 // Built twice: as itself (baseline x86-64) and included by light_sample_lanes_avx2.cpp with
-// RT_LIGHT_SAMPLE_LANES_AVX2 and -mavx2. Only lane_math.h's always-inlined helpers are used, so the
-// AVX2 build emits no inline function that another file could link.
+// RT_LIGHT_SAMPLE_LANES_AVX2 and -mavx2. Only lane_math.h's and lane_libm.h's always-inlined
+// helpers are used, each in its build's inline namespace, so the AVX2 build emits no function
+// that a baseline file could link.
 
 #include "light_sample_lanes.h"
 
