@@ -187,30 +187,32 @@ void SphericalTriangle::set_up_many(const Vec3d& p, std::span<const std::array<V
                                     std::span<SphericalTriangle> out) {
   namespace lanes = light_sample_lanes;
   static const lanes::Kernels& kernels = lanes::best_kernels();
-  assert(corners.size() <= 4 && out.size() >= corners.size());
-  if (corners.empty()) return;
+  assert(out.size() >= corners.size());
   lanes::SphericalInput in;
   for (int axis = 0; axis < 3; ++axis) in.point[axis] = p[axis];
-  for (std::size_t i = 0; i < 4; ++i) {
-    const std::array<Vec3d, 3>& t = corners[std::min(i, corners.size() - 1)];  // unused lanes repeat the last
-    for (auto [to, from] : {std::pair{&in.a, &t[0]}, std::pair{&in.b, &t[1]}, std::pair{&in.c, &t[2]}}) {
-      to->x.v[i] = from->x;
-      to->y.v[i] = from->y;
-      to->z.v[i] = from->z;
+  for (std::size_t first = 0; first < corners.size(); first += 4) {
+    const std::size_t count = std::min<std::size_t>(4, corners.size() - first);
+    for (std::size_t i = 0; i < 4; ++i) {
+      const std::array<Vec3d, 3>& t = corners[first + std::min(i, count - 1)];  // unused lanes repeat the last
+      for (auto [to, from] : {std::pair{&in.a, &t[0]}, std::pair{&in.b, &t[1]}, std::pair{&in.c, &t[2]}}) {
+        to->x.v[i] = from->x;
+        to->y.v[i] = from->y;
+        to->z.v[i] = from->z;
+      }
     }
-  }
-  lanes::SphericalOutput lane;
-  kernels.spherical(in, lane);
-  for (std::size_t i = 0; i < corners.size(); ++i) {
-    SphericalTriangle& s = out[i];
-    s.A_ = {lane.a.x.v[i], lane.a.y.v[i], lane.a.z.v[i]};
-    s.B_ = {lane.b.x.v[i], lane.b.y.v[i], lane.b.z.v[i]};
-    s.C_perp_ = {lane.c_perp.x.v[i], lane.c_perp.y.v[i], lane.c_perp.z.v[i]};
-    s.alpha_ = lane.alpha.v[i];
-    s.cos_alpha_ = lane.cos_alpha.v[i];
-    s.sin_alpha_ = lane.sin_alpha.v[i];
-    s.cos_c_ = lane.cos_c.v[i];
-    s.area_ = lane.area.v[i];
+    lanes::SphericalOutput lane;
+    kernels.spherical(in, lane);
+    for (std::size_t i = 0; i < count; ++i) {
+      SphericalTriangle& s = out[first + i];
+      s.A_ = {lane.a.x.v[i], lane.a.y.v[i], lane.a.z.v[i]};
+      s.B_ = {lane.b.x.v[i], lane.b.y.v[i], lane.b.z.v[i]};
+      s.C_perp_ = {lane.c_perp.x.v[i], lane.c_perp.y.v[i], lane.c_perp.z.v[i]};
+      s.alpha_ = lane.alpha.v[i];
+      s.cos_alpha_ = lane.cos_alpha.v[i];
+      s.sin_alpha_ = lane.sin_alpha.v[i];
+      s.cos_c_ = lane.cos_c.v[i];
+      s.area_ = lane.area.v[i];
+    }
   }
 }
 

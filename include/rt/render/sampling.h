@@ -52,9 +52,9 @@ class SphericalTriangle {
  public:
   SphericalTriangle() = default;
   SphericalTriangle(const Vec3d& p, const Vec3d& a, const Vec3d& b, const Vec3d& c);
-  // The spherical triangles of up to four triangles (corners[i], world space) seen from p, set up
-  // together in SIMD lanes: out[i] gets SphericalTriangle(p, corners[i][0], corners[i][1],
-  // corners[i][2]) bit for bit (the constructor takes this path with one triangle).
+  // The spherical triangles of triangles (corners[i], world space) seen from p, set up four at a
+  // time in SIMD lanes: out[i] (out.size() >= corners.size()) gets SphericalTriangle(p,
+  // corners[i][0], corners[i][1], corners[i][2]) bit for bit (the constructor takes this path).
   static void set_up_many(const Vec3d& p, std::span<const std::array<Vec3d, 3>> corners,
                           std::span<SphericalTriangle> out);
 
