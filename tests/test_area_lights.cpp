@@ -467,51 +467,143 @@ TEST_CASE("SphericalTriangle::set_up_many: the constructor's bits in every lane,
 
 // The facing kernel (n.l and the highlight of a chunk of samples, shade.cpp's area-light terms)
 // gives the scalar formulas' bits, the highlight being the lanes' pow of the scalar n.h, in both
-// builds; unneeded lanes and lanes facing away get a power of 1.
+// builds, in the chunk's lanes in use; invalid lanes and lanes facing away get a power of 1.
 TEST_CASE("light sample lanes: facing gives the scalar n.l and the pow of the scalar n.h") {
   namespace lanes = rt::light_sample_lanes;
   std::mt19937_64 random(2030);
   std::uniform_real_distribution<double> coordinate(-1.0, 1.0);
   const auto unit = [&] { return glm::normalize(Vec3d(coordinate(random), coordinate(random), coordinate(random))); };
   int highlighted = 0;
+  lanes::Chunk chunk;
   for (int round = 0; round < 3000; ++round) {
-    lanes::FacingInput in;
+    lanes::Shading shading;
     const Vec3d normal = unit(), to_eye = round % 5 == 0 ? -normal : unit();  // half vector zero at times
     for (int axis = 0; axis < 3; ++axis) {
-      in.normal[axis] = normal[axis];
-      in.to_eye[axis] = to_eye[axis];
+      shading.normal[axis] = normal[axis];
+      shading.to_eye[axis] = to_eye[axis];
     }
-    in.shininess = round % 4 == 0 ? 0.0 : std::floor(coordinate(random) * 100.0 + 101.0);
-    in.highlights = round % 9 != 0;
+    shading.shininess = round % 4 == 0 ? 0.0 : std::floor(coordinate(random) * 100.0 + 101.0);
+    shading.highlights = round % 9 != 0;
+    chunk.count = round % 3 == 0 ? 1 + int(random() % lanes::kLanes) : lanes::kLanes;
     std::array<Vec3d, lanes::kLanes> directions;
     for (int i = 0; i < lanes::kLanes; ++i) {
       directions[std::size_t(i)] = i % 7 == 3 ? -to_eye : unit();
-      in.direction.x.v[i] = directions[std::size_t(i)].x;
-      in.direction.y.v[i] = directions[std::size_t(i)].y;
-      in.direction.z.v[i] = directions[std::size_t(i)].z;
-      in.needed[i] = random() % 5 ? -1 : 0;
+      chunk.out.direction.x.v[i] = directions[std::size_t(i)].x;
+      chunk.out.direction.y.v[i] = directions[std::size_t(i)].y;
+      chunk.out.direction.z.v[i] = directions[std::size_t(i)].z;
+      chunk.out.valid[i] = random() % 5 ? -1 : 0;
     }
+    const auto used = std::size_t(chunk.count);
     std::array<double, lanes::kLanes> expected_n_dot_l, n_dot_h, expected_power;
     for (std::size_t i = 0; i < directions.size(); ++i) {
       expected_n_dot_l[i] = glm::dot(normal, directions[i]);
       const Vec3d half_sum = directions[i] + to_eye;
       const double half_length = glm::length(half_sum);
-      n_dot_h[i] = in.needed[i] && expected_n_dot_l[i] > 0.0
+      n_dot_h[i] = i < used && chunk.out.valid[i] && expected_n_dot_l[i] > 0.0
                        ? (half_length > 0.0 ? std::max(glm::dot(normal, half_sum) / half_length, 0.0) : 0.0)
                        : 1.0;
     }
-    lanes::baseline_kernels().powers(n_dot_h.data(), in.shininess, expected_power.data());
-    if (!in.highlights) expected_power.fill(1.0);
+    lanes::baseline_kernels().powers(n_dot_h.data(), shading.shininess, expected_power.data());
+    if (!shading.highlights) expected_power.fill(1.0);
     for (const lanes::Kernels* kernels : {&lanes::baseline_kernels(), lanes::avx2_kernels()}) {
       if (!kernels) continue;
       lanes::FacingOutput out;
-      kernels->facing(in, out);
-      REQUIRE(std::memcmp(out.n_dot_l.v, expected_n_dot_l.data(), sizeof out.n_dot_l.v) == 0);
-      REQUIRE(std::memcmp(out.power.v, expected_power.data(), sizeof out.power.v) == 0);
+      kernels->facing(shading, chunk, out);
+      REQUIRE(std::memcmp(out.n_dot_l.v, expected_n_dot_l.data(), used * sizeof(double)) == 0);
+      REQUIRE(std::memcmp(out.power.v, expected_power.data(), used * sizeof(double)) == 0);
     }
-    for (double p : expected_power) highlighted += p != 1.0;
+    for (std::size_t i = 0; i < used; ++i) highlighted += expected_power[i] != 1.0;
   }
   CHECK(highlighted > 10000);
+}
+
+// The emit kernel gives shade.cpp's scalar term, radiance (C_d n.l + C_s power) / (pi N), and
+// shadow_ray_to_sample's ray from offset_ray_origin's origin, bit for bit, in both builds, with
+// robust and fixed offsets, light points on either side and samples at the shading point.
+TEST_CASE("light sample lanes: emit gives the scalar terms and shadow_ray_to_sample's rays") {
+  namespace lanes = rt::light_sample_lanes;
+  std::mt19937_64 random(2031);
+  std::uniform_real_distribution<double> coordinate(-1.0, 1.0), positive(0.0, 2.0);
+  const auto unit = [&] { return glm::normalize(Vec3d(coordinate(random), coordinate(random), coordinate(random))); };
+  const auto random_vec = [&] { return Vec3d(positive(random), positive(random), positive(random)); };
+  const auto get = [](const auto& lanes3, int i) { return Vec3d(lanes3.x.v[i], lanes3.y.v[i], lanes3.z.v[i]); };
+  const auto same = [](const auto& a, const auto& b) { return std::memcmp(&a, &b, sizeof a) == 0; };
+  int traced = 0, at_point = 0, lit_terms = 0;
+  lanes::Chunk chunk;
+  for (int round = 0; round < 2000; ++round) {
+    const rt::RayOffset policy =
+        round % 2 ? rt::RayOffset{} : rt::RayOffset{rt::RayOffset::Mode::fixed, round % 4 ? 1e-4 : 0.5};
+    const double scale = std::pow(10.0, 2.0 * coordinate(random));
+    rt::SurfacePoint surface;
+    surface.point = scale * Vec3d(coordinate(random), coordinate(random), coordinate(random));
+    surface.geometric_normal = unit();
+    surface.error_bound = 1e-6 * scale * positive(random);
+    const Vec3d diffuse = random_vec(), specular = random_vec();
+    lanes::Shading shading;
+    const Vec3f origins[2] = {rt::offset_ray_origin(policy, surface, surface.geometric_normal),
+                              rt::offset_ray_origin(policy, surface, -surface.geometric_normal)};
+    for (int axis = 0; axis < 3; ++axis) {
+      shading.geometric_normal[axis] = surface.geometric_normal[axis];
+      shading.diffuse[axis] = diffuse[axis];
+      shading.specular[axis] = specular[axis];
+      for (int side = 0; side < 2; ++side) shading.origin[side][axis] = origins[side][axis];
+    }
+    shading.scale = 1.0 / (std::numbers::pi * double(1 + random() % 64));
+    shading.highlights = round % 3 != 0;
+    shading.fixed_offset = policy.mode == rt::RayOffset::Mode::fixed;
+    shading.epsilon = policy.epsilon;
+    const bool lit = round % 7 != 0;
+    chunk.count = round % 3 == 0 ? 1 + int(random() % lanes::kLanes) : lanes::kLanes;
+    lanes::FacingOutput facing;
+    std::array<rt::LightSample, lanes::kLanes> samples;
+    for (int i = 0; i < lanes::kLanes; ++i) {
+      rt::LightSample& sample = samples[std::size_t(i)];
+      sample.light_point.point = i % 11 == 5 ? surface.point : surface.point + scale * positive(random) * unit();
+      sample.light_point.geometric_normal = unit();
+      sample.light_point.error_bound = 1e-6 * scale * positive(random);
+      const Vec3d offset = sample.light_point.point - surface.point;
+      sample.direction = glm::length(offset) > 0.0 ? glm::normalize(offset) : unit();
+      sample.radiance_over_pdf = random_vec();
+      const auto set = [i](lanes::Vec3& to, const Vec3d& v) {
+        to.x.v[i] = v.x;
+        to.y.v[i] = v.y;
+        to.z.v[i] = v.z;
+      };
+      set(chunk.out.point, sample.light_point.point);
+      set(chunk.in.normal, sample.light_point.geometric_normal);
+      chunk.out.error_bound.v[i] = sample.light_point.error_bound;
+      set(chunk.out.direction, sample.direction);
+      set(chunk.out.radiance_over_pdf, sample.radiance_over_pdf);
+      facing.n_dot_l.v[i] = coordinate(random);
+      facing.power.v[i] = positive(random);
+    }
+    for (const lanes::Kernels* kernels : {&lanes::baseline_kernels(), lanes::avx2_kernels()}) {
+      if (!kernels) continue;
+      lanes::EmitOutput out;
+      kernels->emit(shading, chunk, facing, lit, out);
+      for (int i = 0; i < chunk.count; ++i) {
+        const rt::LightSample& sample = samples[std::size_t(i)];
+        const double n_dot_l = facing.n_dot_l.v[i];
+        Vec3d term(0.0);
+        if (lit && n_dot_l > 0.0) {
+          const Vec3d highlight = shading.highlights ? specular * facing.power.v[i] : Vec3d(0.0);
+          term = sample.radiance_over_pdf * (diffuse * n_dot_l + highlight) * shading.scale;
+        }
+        REQUIRE(same(get(out.term, i), term));
+        const rt::Ray ray =
+            rt::shadow_ray_to_sample(policy, rt::offset_ray_origin(policy, surface, sample.direction), sample);
+        REQUIRE(same(Vec3f(out.origin.x[i], out.origin.y[i], out.origin.z[i]), ray.origin));
+        REQUIRE(same(out.tfar[i], ray.tfar));
+        if (ray.tfar > 0.0f) REQUIRE(same(Vec3f(out.direction.x[i], out.direction.y[i], out.direction.z[i]), ray.direction));
+        traced += ray.tfar > 0.0f;
+        at_point += ray.tfar <= 0.0f;
+        lit_terms += term != Vec3d(0.0);
+      }
+    }
+  }
+  CHECK(traced > 20000);
+  CHECK(at_point > 100);
+  CHECK(lit_terms > 10000);
 }
 
 TEST_CASE("sample_triangle_uniform: barycentrics on the triangle, uniform (mean at the centroid)") {

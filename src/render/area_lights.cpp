@@ -117,10 +117,10 @@ AreaLights collect_area_lights(const Scene& scene, const FlatScene& flat, const 
     const Vec3d cross = glm::cross(t.p1 - t.p0, t.p2 - t.p0);
     const double twice_area = glm::length(cross);
     if (!(twice_area > 0.0)) continue;  // flatten drops these already; float32 vertices are exact in double
-    t.normal = cross / twice_area;
     t.area = 0.5 * twice_area;
     t.primitive = static_cast<std::uint32_t>(i);
     t.frame = make_triangle_frame(t.p0, t.p1, t.p2);
+    t.normal = t.frame.geometric_normal;  // cross / twice_area: the light points' normal, by construction
     Emitter& emitter = lights.emitters[std::size_t(e)];
     for (const Vec3d& p : {t.p0, t.p1, t.p2}) emitter.bounds.extend(p);
     emitter.area += t.area;
@@ -325,83 +325,104 @@ LightSample EmitterSampler::sample(Vec2d u) {
   return sample;
 }
 
-void EmitterSampler::sample_many(std::span<const Vec2d> u, std::span<LightSample> out) {
+void EmitterSampler::draw(std::span<const Vec2d> u, light_sample_lanes::Chunk& chunk) {
   namespace lanes = light_sample_lanes;
   static const lanes::Kernels& kernels = lanes::best_kernels();
-  lanes::Input in;
-  lanes::Output lane;
+  lanes::Input& in = chunk.in;
   std::array<Choice, lanes::kLanes> choices;
-  std::array<const View*, lanes::kLanes> views;
   // One view per lane for triangles past the cache, allocated only for emitters that have them.
   if (emitter_.triangles.size() > kCachedTriangles) uncached_.resize(lanes::kLanes);
-  std::array<Vec3d, lanes::kLanes> uniform;  // sample_triangle_uniform's barycentrics, where by area
   for (int axis = 0; axis < 3; ++axis) in.point[axis] = point_[axis];
+  const Vec3d emission(scene_.materials[emitter_.material].emission);
+  for (int axis = 0; axis < 3; ++axis) in.emission[axis] = emission[axis];
   const auto set = [](lanes::Vec3& to, int k, const Vec3d& v) {
     to.x.v[k] = v.x;
     to.y.v[k] = v.y;
     to.z.v[k] = v.z;
   };
-  for (std::size_t first = 0; first < u.size(); first += lanes::kLanes) {
-    const int count = static_cast<int>(std::min<std::size_t>(lanes::kLanes, u.size() - first));
-    // Gather each lane's triangle and warp; the lanes past `count` up to a multiple of 4 repeat
-    // the last one.
-    const int padded = (count + 3) / 4 * 4;
-    // The choices first, in a pass of their own (a choice read back right after it was written
-    // stalled store forwarding).
-    const auto u_of = [&](int k) { return u[first + std::size_t(std::min(k, count - 1))]; };
-    std::array<double, lanes::kLanes> uy;
-    for (int k = 0; k < padded; ++k) uy[std::size_t(k)] = u_of(k).y;
-    choose_many(std::span(uy).first(std::size_t(padded)), choices);
-    for (int k = 0; k < padded; ++k) {
-      const Vec2d uk = u_of(k);
-      const Choice& choice = choices[std::size_t(k)];
-      View* spill = uncached_.empty() ? nullptr : &uncached_[std::size_t(k)];  // read past the cache only
-      const View& seen = *(views[std::size_t(k)] = &view(choice.triangle, spill));
-      const EmitterTriangle& t = emitter_.triangles[choice.triangle];
-      set(in.p0, k, t.p0);
-      set(in.p1, k, t.p1);
-      set(in.p2, k, t.p2);
-      in.edge_term.v[k] = t.frame.edge_term;
-      in.by_solid_angle[k] = seen.by_solid_angle ? -1 : 0;
-      if (seen.by_solid_angle) {
-        const SphericalTriangle& spherical = seen.spherical;
-        in.angle.v[k] = spherical.warp_angle(uk.x);
-        in.v.v[k] = choice.v;
-        in.b1.v[k] = in.b2.v[k] = 0.0;  // read but not used
-        in.cos_alpha.v[k] = spherical.cos_alpha();
-        in.sin_alpha.v[k] = spherical.sin_alpha();
-        in.cos_c.v[k] = spherical.cos_c();
-        set(in.a, k, spherical.a());
-        set(in.b, k, spherical.b());
-        set(in.c_perp, k, spherical.c_perp());
-      } else {
-        const Vec3d b = uniform[std::size_t(k)] = sample_triangle_uniform({uk.x, choice.v});
-        in.b1.v[k] = b.y;
-        in.b2.v[k] = b.z;
-        // The warp's inputs are read but not used: any finite values.
-        in.angle.v[k] = in.v.v[k] = in.cos_alpha.v[k] = in.sin_alpha.v[k] = in.cos_c.v[k] = 0.0;
-        set(in.a, k, Vec3d(1.0, 0.0, 0.0));
-        set(in.b, k, Vec3d(0.0, 1.0, 0.0));
-        set(in.c_perp, k, Vec3d(0.0, 0.0, 1.0));
-      }
+  const int count = chunk.count = static_cast<int>(std::min<std::size_t>(lanes::kLanes, u.size()));
+  // Gather each lane's triangle and warp; the lanes past `count` up to a multiple of 4 repeat the
+  // last one.
+  const int padded = (count + 3) / 4 * 4;
+  // The choices first, in a pass of their own (a choice read back right after it was written
+  // stalled store forwarding).
+  const auto u_of = [&](int k) { return u[std::size_t(std::min(k, count - 1))]; };
+  std::array<double, lanes::kLanes> uy;
+  for (int k = 0; k < padded; ++k) uy[std::size_t(k)] = u_of(k).y;
+  choose_many(std::span(uy).first(std::size_t(padded)), choices);
+  for (int k = 0; k < padded; ++k) {
+    const Vec2d uk = u_of(k);
+    const Choice& choice = choices[std::size_t(k)];
+    View* spill = uncached_.empty() ? nullptr : &uncached_[std::size_t(k)];  // read past the cache only
+    const View& seen = view(choice.triangle, spill);
+    const EmitterTriangle& t = emitter_.triangles[choice.triangle];
+    chunk.triangle[k] = static_cast<std::uint32_t>(choice.triangle);
+    set(in.p0, k, t.p0);
+    set(in.p1, k, t.p1);
+    set(in.p2, k, t.p2);
+    in.edge_term.v[k] = t.frame.edge_term;
+    set(in.normal, k, t.normal);
+    in.area.v[k] = t.area;
+    in.probability.v[k] = choice.probability;
+    in.by_solid_angle[k] = seen.by_solid_angle ? -1 : 0;
+    if (seen.by_solid_angle) {
+      const SphericalTriangle& spherical = seen.spherical;
+      in.angle.v[k] = spherical.warp_angle(uk.x);
+      in.v.v[k] = choice.v;
+      in.b1.v[k] = in.b2.v[k] = 0.0;  // read but not used
+      in.cos_alpha.v[k] = spherical.cos_alpha();
+      in.sin_alpha.v[k] = spherical.sin_alpha();
+      in.cos_c.v[k] = spherical.cos_c();
+      set(in.a, k, spherical.a());
+      set(in.b, k, spherical.b());
+      set(in.c_perp, k, spherical.c_perp());
+      set(in.solid_radiance, k, seen.radiance_over_pdf);
+      chunk.b0[k] = 0.0;  // set from the kernel's b1, b2 by emission_texel
+    } else {
+      const Vec3d b = sample_triangle_uniform({uk.x, choice.v});
+      chunk.b0[k] = b.x;
+      in.b1.v[k] = b.y;
+      in.b2.v[k] = b.z;
+      // The warp's inputs are read but not used: any finite values.
+      in.angle.v[k] = in.v.v[k] = in.cos_alpha.v[k] = in.sin_alpha.v[k] = in.cos_c.v[k] = 0.0;
+      set(in.a, k, Vec3d(1.0, 0.0, 0.0));
+      set(in.b, k, Vec3d(0.0, 1.0, 0.0));
+      set(in.c_perp, k, Vec3d(0.0, 0.0, 1.0));
+      set(in.solid_radiance, k, Vec3d(0.0));
     }
-    kernels.sample(in, count, lane);
-    for (int k = 0; k < count; ++k) {
+  }
+  kernels.sample(in, count, chunk.out);
+}
+
+TexCoords EmitterSampler::texcoord_of(const light_sample_lanes::Chunk& chunk, int k) const {
+  const double b1 = chunk.out.b1.v[k], b2 = chunk.out.b2.v[k];
+  const double b0 = chunk.in.by_solid_angle[k] ? 1.0 - b1 - b2 : chunk.b0[k];
+  return texcoords_at(flat_, emitter_.triangles[chunk.triangle[k]].primitive, float(b0), float(b1), float(b2));
+}
+
+Vec3d EmitterSampler::emission_texel(const light_sample_lanes::Chunk& chunk, int k) const {
+  return Vec3d(textures_->emission(emitter_.material, texcoord_of(chunk, k)));
+}
+
+void EmitterSampler::sample_many(std::span<const Vec2d> u, std::span<LightSample> out) {
+  light_sample_lanes::Chunk chunk;
+  for (std::size_t first = 0; first < u.size(); first += light_sample_lanes::kLanes) {
+    draw(u.subspan(first), chunk);
+    const light_sample_lanes::Output& lane = chunk.out;
+    for (int k = 0; k < chunk.count; ++k) {
       LightSample& sample = out[first + std::size_t(k)];
       sample.valid = lane.valid[k] != 0;
       if (!sample.valid) continue;
-      sample.radiance_over_pdf = Vec3d(0.0);
-      sample.texcoord.reset();
-      const Choice& choice = choices[std::size_t(k)];
-      const EmitterTriangle& t = emitter_.triangles[choice.triangle];
+      const EmitterTriangle& t = emitter_.triangles[chunk.triangle[k]];
       sample.light_point.point = {lane.point.x.v[k], lane.point.y.v[k], lane.point.z.v[k]};
       sample.light_point.geometric_normal = t.frame.geometric_normal;
       sample.light_point.error_bound = lane.error_bound.v[k];
       sample.distance = lane.distance.v[k];
       sample.direction = {lane.direction.x.v[k], lane.direction.y.v[k], lane.direction.z.v[k]};
-      const Vec3d b = in.by_solid_angle[k] ? Vec3d(1.0 - lane.b1.v[k] - lane.b2.v[k], lane.b1.v[k], lane.b2.v[k])
-                                           : uniform[std::size_t(k)];
-      weigh(sample, t, choice, *views[std::size_t(k)], b);
+      sample.radiance_over_pdf = {lane.radiance_over_pdf.x.v[k], lane.radiance_over_pdf.y.v[k],
+                                  lane.radiance_over_pdf.z.v[k]};
+      sample.texcoord.reset();
+      if (emission_texture_ && lane.front[k]) sample.texcoord = texcoord_of(chunk, k);
     }
   }
 }

@@ -155,8 +155,22 @@ template <int N>
   const Wide<N> distance = lm::sqrt(dot(offset, offset));
   valid = valid & (distance > zero);
   put(out.distance, g, distance);
-  put(out.direction, g, Vec3W<N>{offset.x / distance, offset.y / distance, offset.z / distance});
+  const Vec3W<N> direction{offset.x / distance, offset.y / distance, offset.z / distance};
+  put(out.direction, g, direction);
   put(out.valid, g, valid);
+
+  // EmitterSampler::weigh: the solid-angle density by the view's value, or by area probability /
+  // area * r^2 / cos(theta'); zero where the triangle's back faces the point.
+  const Wide<N> cos_emitter = -dot(at<N>(in.normal, g), direction);
+  const WideMask<N> front = cos_emitter > zero;
+  const Wide<N> by_area = (at<N>(in.area, g) * cos_emitter) / ((at<N>(in.probability, g) * distance) * distance);
+  const Vec3W<N> solid = at<N>(in.solid_radiance, g);
+  const auto radiance = [&](const Wide<N>& solid_radiance, double emission) {
+    return lm::select(front, lm::select(by_solid_angle, solid_radiance, splat<N>(emission) * by_area), zero);
+  };
+  put(out.radiance_over_pdf, g,
+      Vec3W<N>{radiance(solid.x, in.emission[0]), radiance(solid.y, in.emission[1]), radiance(solid.z, in.emission[2])});
+  put(out.front, g, front);
 }
 
 // The groups of four in use, as many at a time as the build's registers hold (see Wide).
@@ -237,41 +251,125 @@ void spherical(const SphericalInput& in, SphericalOutput& out) {
   lm::store(out.area.v, kept(area));
 }
 
-void facing(const FacingInput& in, FacingOutput& out) {
+// The groups of four lanes a chunk uses.
+static int groups_in_use(const Chunk& chunk) { return (chunk.count + 3) / 4 * 4; }
+
+void facing(const Shading& shading, const Chunk& chunk, FacingOutput& out) {
   using lm::Xyz;
   const D4 zero{}, one = lm::broadcast(1.0);
-  const Xyz normal{lm::broadcast(in.normal[0]), lm::broadcast(in.normal[1]), lm::broadcast(in.normal[2])};
-  const Xyz to_eye{lm::broadcast(in.to_eye[0]), lm::broadcast(in.to_eye[1]), lm::broadcast(in.to_eye[2])};
+  const Xyz normal{lm::broadcast(shading.normal[0]), lm::broadcast(shading.normal[1]), lm::broadcast(shading.normal[2])};
+  const Xyz to_eye{lm::broadcast(shading.to_eye[0]), lm::broadcast(shading.to_eye[1]), lm::broadcast(shading.to_eye[2])};
   alignas(32) double n_dot_h[kLanes];
-  for (int g = 0; g < kLanes; g += 4) {
+  const int used = groups_in_use(chunk);
+  for (int g = 0; g < used; g += 4) {
     Xyz direction;
-    lm::load(direction, in.direction, g);
+    lm::load(direction, chunk.out.direction, g);
     const D4 n_dot_l = lm::dot(normal, direction);
     lm::store(out.n_dot_l.v + g, n_dot_l);
     const Xyz half_sum{direction.x + to_eye.x, direction.y + to_eye.y, direction.z + to_eye.z};
     const D4 half_length = lm::sqrt(lm::dot(half_sum, half_sum));
     const D4 cosine = lm::select(half_length > zero, lm::max(lm::dot(normal, half_sum) / half_length, zero), zero);
-    lm::M4 needed;
-    lm::load(needed, in.needed + g);
-    lm::store(n_dot_h + g, lm::select(needed & (n_dot_l > zero), cosine, one));
+    lm::M4 valid;
+    lm::load(valid, chunk.out.valid + g);
+    lm::store(n_dot_h + g, lm::select(valid & (n_dot_l > zero), cosine, one));
   }
-  if (in.highlights)
-    powers(n_dot_h, in.shininess, out.power.v);
+  for (int g = used; g < kLanes; g += 4) lm::store(n_dot_h + g, one);
+  if (shading.highlights)
+    powers(n_dot_h, shading.shininess, out.power.v);
   else
     for (double& p : out.power.v) p = 1.0;
+}
+
+// The term, then shadow_ray_to_sample: the origin on the side the direction leaves by, the target
+// offset off the emitter towards it (offset_ray_origin), the float32 direction between them and
+// the shortened tfar, each with the scalar code's operations.
+void emit(const Shading& shading, const Chunk& chunk, const FacingOutput& facing, bool lit, EmitOutput& out) {
+  using lm::Xyz;
+  using ray_offset_detail::kScaledRoundoff;
+  const D4 zero{}, one = lm::broadcast(1.0);
+  const auto splat3 = [](const double (&v)[3]) { return Xyz{lm::broadcast(v[0]), lm::broadcast(v[1]), lm::broadcast(v[2])}; };
+  const Xyz diffuse = splat3(shading.diffuse), specular = splat3(shading.specular), normal = splat3(shading.geometric_normal);
+  const D4 scale = lm::broadcast(shading.scale);
+  const lm::M4 none = zero != zero, all = ~none;
+  const lm::M4 lit_mask = lit ? all : none;
+  // The two origins, as float32 and as double.
+  lm::F4 origin_f[2][3];
+  for (int side = 0; side < 2; ++side)
+    for (int axis = 0; axis < 3; ++axis) origin_f[side][axis] = _mm_set1_ps(shading.origin[side][axis]);
+  const int used = groups_in_use(chunk);
+  for (int g = 0; g < used; g += 4) {
+    Xyz direction, radiance, light_point, light_normal;
+    lm::load(direction, chunk.out.direction, g);
+    lm::load(radiance, chunk.out.radiance_over_pdf, g);
+    lm::load(light_point, chunk.out.point, g);
+    lm::load(light_normal, chunk.in.normal, g);
+    D4 n_dot_l, power, error_bound;
+    lm::load(n_dot_l, facing.n_dot_l.v + g);
+    lm::load(power, facing.power.v + g);
+    lm::load(error_bound, chunk.out.error_bound.v + g);
+
+    // term = radiance (C_d n.l + C_s power) / (pi N), or (0, 0, 0).
+    const lm::M4 counted = lit_mask & (n_dot_l > zero);
+    const auto term = [&](const D4& r, const D4& d, const D4& s) {
+      const D4 highlight = shading.highlights ? s * power : zero;
+      return lm::select(counted, (r * (d * n_dot_l + highlight)) * scale, zero);
+    };
+    lm::store(out.term, g, Xyz{term(radiance.x, diffuse.x, specular.x), term(radiance.y, diffuse.y, specular.y),
+                               term(radiance.z, diffuse.z, specular.z)});
+
+    // The origin leaving on the side of the direction (SideOrigins::leaving_along).
+    const __m128i leaves_front = lm::narrow(lm::dot(normal, direction) >= zero);
+    lm::F4 origin[3];
+    for (int axis = 0; axis < 3; ++axis)
+      origin[axis] = _mm_castsi128_ps(_mm_or_si128(_mm_and_si128(leaves_front, _mm_castps_si128(origin_f[0][axis])),
+                                                   _mm_andnot_si128(leaves_front, _mm_castps_si128(origin_f[1][axis]))));
+    const Xyz o{lm::to_double(origin[0]), lm::to_double(origin[1]), lm::to_double(origin[2])};
+    // The target: offset_ray_origin(light point, origin - light point).
+    const Xyz back{o.x - light_point.x, o.y - light_point.y, o.z - light_point.z};
+    const D4 sign = lm::select(lm::dot(light_normal, back) >= zero, one, -one);  // n or -n, exactly
+    const D4 sx = sign * light_normal.x, sy = sign * light_normal.y, sz = sign * light_normal.z;
+    lm::F4 target[3];
+    if (shading.fixed_offset) {
+      const D4 epsilon = lm::broadcast(shading.epsilon);
+      target[0] = lm::to_float(light_point.x + epsilon * sx);
+      target[1] = lm::to_float(light_point.y + epsilon * sy);
+      target[2] = lm::to_float(light_point.z + epsilon * sz);
+    } else {
+      target[0] = lm::round_away(light_point.x + error_bound * sx, sx);
+      target[1] = lm::round_away(light_point.y + error_bound * sy, sy);
+      target[2] = lm::round_away(light_point.z + error_bound * sz, sz);
+    }
+    const Xyz t{lm::to_double(target[0]), lm::to_double(target[1]), lm::to_double(target[2])};
+    const Xyz span{t.x - o.x, t.y - o.y, t.z - o.z};
+    const D4 length = lm::sqrt(lm::dot(span, span));
+    const lm::M4 apart = length > zero;
+    const D4 tfar = shading.fixed_offset
+                        ? length - lm::broadcast(shading.epsilon)
+                        : length - lm::broadcast(kScaledRoundoff) *
+                                       (lm::broadcast(std::sqrt(3.0)) * lm::max(lm::max(lm::abs(t.x), lm::abs(t.y)), lm::abs(t.z)) +
+                                        lm::broadcast(4.0) * length);
+    lm::store(out.origin.x + g, origin[0]);
+    lm::store(out.origin.y + g, origin[1]);
+    lm::store(out.origin.z + g, origin[2]);
+    lm::store(out.direction.x + g, lm::to_float(lm::select(apart, span.x / length, direction.x)));
+    lm::store(out.direction.y + g, lm::to_float(lm::select(apart, span.y / length, direction.y)));
+    lm::store(out.direction.z + g, lm::to_float(lm::select(apart, span.z / length, direction.z)));
+    lm::store(out.tfar + g, lm::to_float(lm::select(apart, tfar, zero)));
+  }
 }
 
 }  // namespace (baseline or avx2)
 
 #ifdef RT_LIGHT_SAMPLE_LANES_AVX2
 const Kernels* avx2_kernels() {
-  static const Kernels kernels{&avx2::sample, &avx2::powers, &avx2::spherical, &avx2::facing};
+  static const Kernels kernels{&avx2::sample, &avx2::powers, &avx2::spherical, &avx2::facing, &avx2::emit};
   __builtin_cpu_init();  // idempotent; needed when called before the constructors have run
   return __builtin_cpu_supports("avx2") ? &kernels : nullptr;
 }
 #else
 const Kernels& baseline_kernels() {
-  static const Kernels kernels{&baseline::sample, &baseline::powers, &baseline::spherical, &baseline::facing};
+  static const Kernels kernels{&baseline::sample, &baseline::powers, &baseline::spherical, &baseline::facing,
+                               &baseline::emit};
   return kernels;
 }
 

@@ -1,11 +1,13 @@
 #pragma once
-// EmitterSampler::sample_many's arithmetic over lanes (area_lights.cpp): Arvo's spherical warp (its
-// sine and cosine from lane_libm.h, as SphericalTriangle::sample takes them), the barycentrics
-// where the direction meets the triangle, the sample's surface point and its direction and
-// distance from the shading point. World space, double. Built twice, like batch_lanes.cpp:
-// baseline x86-64 and AVX2 (light_sample_lanes_avx2.cpp), chosen once by what the CPU has; each
-// lane takes the scalar code's IEEE operations in the same order, so both builds give
-// SphericalTriangle::sample's, barycentrics_along's and make_surface_point's bits.
+// The area-light terms' arithmetic over lanes, a chunk of up to 16 light samples of one emitter
+// seen from one shading point at a time (area_lights.cpp draws them, shade.cpp uses them): Arvo's
+// spherical warp (its sine and cosine from lane_libm.h, as SphericalTriangle::sample takes them),
+// the barycentrics where the direction meets the triangle, the sample's surface point, direction,
+// distance and emitted radiance over pdf; then the Blinn-Phong factors, the terms and the shadow
+// rays. World space, double (the rays float32). Built twice, like batch_lanes.cpp: baseline x86-64
+// and AVX2 (light_sample_lanes_avx2.cpp), chosen once by what the CPU has; each lane takes the
+// scalar code's IEEE operations in the same order, so both builds give EmitterSampler::sample's,
+// shade.cpp's and shadow_ray_to_sample's bits.
 
 #include <cstdint>
 
@@ -32,16 +34,38 @@ struct Input {
   // Where !by_solid_angle: the barycentrics b1, b2 of the point (sample_triangle_uniform).
   Lanes b1, b2;
   alignas(32) std::int64_t by_solid_angle[kLanes];  // all ones or 0
+  // EmitterSampler::weigh's inputs: the triangle's unit normal (its front side), area (scene
+  // units^2) and probability, and where by_solid_angle the emission over pdf (View's); the
+  // emitter's emission (linear RGB), the same in every lane.
+  Vec3 normal;
+  Lanes area, probability;
+  Vec3 solid_radiance;
+  double emission[3];
 };
 
 // Per lane: the sample's barycentrics b1, b2, surface point and error bound (make_surface_point),
 // its unit direction and distance from the shading point, and whether it has one (valid: the
-// direction met the triangle's plane and the point is not the shading point).
+// direction met the triangle's plane and the point is not the shading point); where valid, its
+// emitted radiance over pdf (LightSample's, zero where the triangle's back faces the point) and
+// whether the front does.
 struct Output {
   Output() {}
   Vec3 point, direction;
   Lanes b1, b2, error_bound, distance;
   alignas(32) std::int64_t valid[kLanes];  // all ones or 0
+  Vec3 radiance_over_pdf;
+  alignas(32) std::int64_t front[kLanes];  // all ones or 0
+};
+
+// A chunk of light samples of one emitter seen from one point, in lanes: what
+// EmitterSampler::draw gathers and the sample kernel computes.
+struct Chunk {
+  Chunk() {}
+  int count = 0;  // lanes in use
+  Input in;
+  Output out;
+  std::uint32_t triangle[kLanes];  // index into Emitter::triangles
+  double b0[kLanes];  // the barycentric of p0 (1 - b1 - b2, or sample_triangle_uniform's)
 };
 
 // SphericalTriangle's set-up (sampling.cpp) for four triangles (a, b, c) seen from one point, one
@@ -59,32 +83,50 @@ struct SphericalOutput {
   LaneArray<4> alpha, cos_alpha, sin_alpha, cos_c, area;
 };
 
-// The Blinn-Phong factors of a chunk of light samples seen from one shading point (shade.cpp's
-// area-light terms; world space): per lane n.l = normal . direction and, where `needed` and
-// n.l > 0, the highlight max(n.h, 0)^shininess, h the normalised direction + to_eye (elsewhere 1),
-// with shade.cpp's operations in its order.
-struct FacingInput {
-  FacingInput() {}
-  double normal[3], to_eye[3];  // unit
-  double shininess;
-  bool highlights = true;  // false: no lane needs its highlight (all powers 1)
-  Vec3 direction;          // unit
-  alignas(32) std::int64_t needed[kLanes];  // all ones or 0
+// What the area-light terms read of the shading point (shade.cpp; world space, double): the
+// Blinn-Phong inputs, the geometric normal and the shadow rays' origins on either side of the
+// surface (offset_ray_origin, float32), and the ray offset policy.
+struct Shading {
+  Shading() {}
+  double normal[3], to_eye[3];  // shading normal, unit; towards the ray's origin, unit
+  double geometric_normal[3];
+  double diffuse[3], specular[3];  // C_d (texture applied) and C_s
+  double shininess = 0.0;
+  double scale = 0.0;  // 1 / (pi N), N samples per hit
+  bool highlights = true;  // the specular term is evaluated
+  float origin[2][3];  // leaving on the geometric normal's side ([0], n . direction >= 0) or the other ([1])
+  bool fixed_offset = false;  // RayOffset::Mode::fixed, by `epsilon` world units
+  double epsilon = 0.0;
 };
+
+// Per lane of a chunk: n.l = normal . direction and, where valid and n.l > 0, the highlight
+// max(n.h, 0)^shininess, h the normalised direction + to_eye (elsewhere, or without highlights, 1),
+// with shade.cpp's scalar operations in its order.
 struct FacingOutput {
   FacingOutput() {}
   Lanes n_dot_l, power;
 };
 
+// Per lane of a chunk: the sample's term L / pdf (C_d n.l + C_s power) / (pi N) (zero where n.l <= 0
+// or `lit` is false) and its shadow ray (shadow_ray_to_sample from the origin on the side the
+// direction leaves by; tfar <= 0: nothing can be in between).
+struct EmitOutput {
+  EmitOutput() {}
+  Vec3 term;
+  Vec3fLanes<kLanes> origin, direction;
+  alignas(64) float tfar[kLanes];
+};
+
 // One build of the lanes: `sample` computes `count` lanes (<= kLanes) of `in` into `out`;
 // `powers` sets out[k] = pow(x[k], y) for k < kLanes (lane_libm.h's pow: within 1 ulp of glibc's,
 // the same bits in both builds); `spherical` sets up four spherical triangles; `facing` computes
-// the n.l and highlights of a chunk of samples.
+// the n.l and highlights of a chunk's lanes in use, `emit` their terms (with `lit`) and shadow rays.
 struct Kernels {
   void (*sample)(const Input& in, int count, Output& out);
   void (*powers)(const double* x, double y, double* out);
   void (*spherical)(const SphericalInput& in, SphericalOutput& out);
-  void (*facing)(const FacingInput& in, FacingOutput& out);
+  void (*facing)(const Shading& shading, const Chunk& chunk, FacingOutput& out);
+  void (*emit)(const Shading& shading, const Chunk& chunk, const FacingOutput& facing, bool lit, EmitOutput& out);
 };
 
 const Kernels& baseline_kernels();

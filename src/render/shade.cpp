@@ -179,28 +179,6 @@ struct LitSurface {
   const MaterialPlan& terms;
 };
 
-// offset_ray_origin(policy, surface, direction) for many directions: it depends on the direction
-// only through the side of the surface it leaves by (the sign of n . direction), so each side's
-// origin is computed once, when first asked for.
-class SideOrigins {
- public:
-  SideOrigins(const RayOffset& policy, const SurfacePoint& surface) : policy_(policy), surface_(surface) {}
-  Vec3f leaving_along(const Vec3d& direction) {
-    const int side = glm::dot(surface_.geometric_normal, direction) >= 0.0 ? 0 : 1;
-    if (!known_[side]) {
-      origin_[side] = offset_ray_origin(policy_, surface_, direction);
-      known_[side] = true;
-    }
-    return origin_[side];
-  }
-
- private:
-  const RayOffset& policy_;
-  const SurfacePoint& surface_;
-  Vec3f origin_[2];
-  bool known_[2] = {false, false};
-};
-
 // The area lights' terms at a hit, in emitter order, each emitter's light_samples samples in
 // pattern order: term_k = L_e,k / pdf_k (C_d n.l_k + C_s max(n.h_k, 0)^sigma) / (pi N) where
 // n.l_k > 0, shadowed by its own ray. The emitter-level rules (unlit material, behind a planar
@@ -224,23 +202,32 @@ template <class Shadows>
       note(context, depth, "  area light {}: {} sample{} not traced ({})", emitter, amount, amount == 1 ? "" : "s",
            to_string(rule));
   };
-  SideOrigins origins{context.ray_offset, lit.surface};
-  // The pattern's points and their light samples, drawn together a chunk at a time, with their n.l
-  // and highlights max(n.h, 0)^sigma computed in lanes.
+  // The pattern's points and their light samples, drawn a chunk at a time in lanes, where their
+  // n.l, highlights max(n.h, 0)^sigma, terms and shadow rays are computed too.
   namespace lanes = light_sample_lanes;
   static const lanes::Kernels& kernels = lanes::best_kernels();
-  constexpr std::size_t kChunk = lanes::kLanes;
+  constexpr std::uint32_t kChunk = lanes::kLanes;
   std::array<Vec2d, kChunk> points;
-  std::array<LightSample, kChunk> drawn;
-  const bool highlights = lit.terms.specular || !prune;
-  lanes::FacingInput facing;
+  lanes::Shading shading;
+  const Vec3d& geometric_normal = lit.surface.geometric_normal;
+  const Vec3f origins[2] = {offset_ray_origin(context.ray_offset, lit.surface, geometric_normal),
+                            offset_ray_origin(context.ray_offset, lit.surface, -geometric_normal)};
   for (int axis = 0; axis < 3; ++axis) {
-    facing.normal[axis] = lit.normal[axis];
-    facing.to_eye[axis] = lit.to_eye[axis];
+    shading.normal[axis] = lit.normal[axis];
+    shading.to_eye[axis] = lit.to_eye[axis];
+    shading.geometric_normal[axis] = geometric_normal[axis];
+    shading.diffuse[axis] = lit.diffuse[axis];
+    shading.specular[axis] = lit.specular[axis];
+    for (int side = 0; side < 2; ++side) shading.origin[side][axis] = origins[side][axis];
   }
-  facing.shininess = lit.shininess;
-  facing.highlights = highlights;
+  shading.shininess = lit.shininess;
+  shading.scale = scale;
+  shading.highlights = lit.terms.specular || !prune;
+  shading.fixed_offset = context.ray_offset.mode == RayOffset::Mode::fixed;
+  shading.epsilon = context.ray_offset.epsilon;
+  lanes::Chunk chunk;
   lanes::FacingOutput factors;
+  lanes::EmitOutput emitted;
   for (std::size_t e = 0; e < area_lights.emitters.size(); ++e) {
     const Emitter& emitter = area_lights.emitters[e];
     const std::size_t slot = context.scene.lights.size() + e;
@@ -262,46 +249,42 @@ template <class Shadows>
     }
     const auto pattern = static_cast<std::uint32_t>(mix64(path_seed ^ mix64((std::uint64_t(depth) << 32) + e)));
     EmitterSampler sampler(emitter, context.flat, context.scene, context.textures, point, plan.options.light_sampling);
-    for (std::uint32_t k = 0; k < samples; ++k) {
-      const std::size_t j = k % kChunk;
-      if (j == 0) {
-        const auto chunk = std::span(points).first(std::min<std::size_t>(kChunk, samples - k));
-        cmj_samples(k, chunk, samples, pattern);
-        sampler.sample_many(chunk, drawn);
-        for (std::size_t i = 0; i < kChunk; ++i) {
-          const bool used = i < chunk.size() && drawn[i].valid;
-          const Vec3d& direction = used ? drawn[i].direction : lit.normal;  // any finite direction
-          facing.direction.x.v[i] = direction.x;
-          facing.direction.y.v[i] = direction.y;
-          facing.direction.z.v[i] = direction.z;
-          facing.needed[i] = used && !all_zero ? -1 : 0;
+    for (std::uint32_t first = 0; first < samples; first += kChunk) {
+      const auto chunk_points = std::span(points).first(std::min(kChunk, samples - first));
+      cmj_samples(first, chunk_points, samples, pattern);
+      sampler.draw(chunk_points, chunk);
+      kernels.facing(shading, chunk, factors);
+      if (!all_zero && sampler.has_emission_texture())
+        for (int k = 0; k < chunk.count; ++k)
+          if (chunk.out.valid[k] && chunk.out.front[k] && factors.n_dot_l.v[k] > 0.0) {
+            lanes::Vec3& radiance = chunk.out.radiance_over_pdf;
+            const Vec3d textured = Vec3d(radiance.x.v[k], radiance.y.v[k], radiance.z.v[k]) * sampler.emission_texel(chunk, k);
+            radiance.x.v[k] = textured.x;
+            radiance.y.v[k] = textured.y;
+            radiance.z.v[k] = textured.z;
+          }
+      kernels.emit(shading, chunk, factors, !all_zero, emitted);
+      for (int k = 0; k < chunk.count; ++k) {
+        if (!chunk.out.valid[k]) {
+          skip(SkipRule::sample_on_surface, e, 1);
+          continue;
         }
-        kernels.facing(facing, factors);
-      }
-      const LightSample& sample = drawn[j];
-      if (!sample.valid) {
-        skip(SkipRule::sample_on_surface, e, 1);
-        continue;
-      }
-      Vec3d term(0.0);
-      const double n_dot_l = factors.n_dot_l.v[j];
-      if (!all_zero && n_dot_l > 0.0) {
-        const Vec3d highlight = highlights ? lit.specular * factors.power.v[j] : Vec3d(0.0);
-        const Vec3d radiance = sample.texcoord ? sample.radiance_over_pdf *
-                                                     Vec3d(context.textures->emission(emitter.material, *sample.texcoord))
-                                               : sample.radiance_over_pdf;
-        term = radiance * (lit.diffuse * n_dot_l + highlight) * scale;
-      }
-      if (prune && term == Vec3d(0.0)) {
-        skip(SkipRule::sample_zero, e, 1);
-        continue;
-      }
-      const Ray shadow_ray = shadow_ray_to_sample(context.ray_offset, origins.leaving_along(sample.direction), sample);
-      if (shadow_ray.tfar > 0.0f) {
-        shadows.query(slot, term, shadow_ray, int(k));
-      } else {
-        skip(SkipRule::sample_on_surface, e, 1);
-        shadows.lit(slot, term, int(k));
+        const Vec3d term(emitted.term.x.v[k], emitted.term.y.v[k], emitted.term.z.v[k]);
+        if (prune && term == Vec3d(0.0)) {
+          skip(SkipRule::sample_zero, e, 1);
+          continue;
+        }
+        const int index = int(first) + k;
+        if (emitted.tfar[k] > 0.0f) {
+          Ray shadow_ray;
+          shadow_ray.origin = {emitted.origin.x[k], emitted.origin.y[k], emitted.origin.z[k]};
+          shadow_ray.direction = {emitted.direction.x[k], emitted.direction.y[k], emitted.direction.z[k]};
+          shadow_ray.tfar = emitted.tfar[k];
+          shadows.query(slot, term, shadow_ray, index);
+        } else {
+          skip(SkipRule::sample_on_surface, e, 1);
+          shadows.lit(slot, term, index);
+        }
       }
     }
   }

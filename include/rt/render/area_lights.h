@@ -20,6 +20,10 @@
 
 namespace rt {
 
+namespace light_sample_lanes {
+struct Chunk;
+}
+
 // How a light sample picks its point on the chosen triangle. area: uniformly by area. solid_angle:
 // uniformly in the solid angle the triangle subtends (Arvo 1995), which removes the 1/r^2 and
 // cos(theta') of the emitter from the estimator. automatic: solid angle where it pays, i.e. where
@@ -117,8 +121,15 @@ class EmitterSampler {
   LightSample sample(Vec2d u);
   // sample(u[k]) into out[k] for every k (out.size() >= u.size()), bit for bit where valid (of an
   // invalid sample only `valid` is set), with the warp's arithmetic done several samples at a time
-  // in SIMD lanes (light_sample_lanes.h).
+  // in SIMD lanes: draw's lanes, copied out.
   void sample_many(std::span<const Vec2d> u, std::span<LightSample> out);
+  // The samples of the first min(u.size(), kLanes) points of u, left in lanes
+  // (light_sample_lanes.h; the renderer's private header): what sample gives, without the texture.
+  void draw(std::span<const Vec2d> u, light_sample_lanes::Chunk& chunk);
+  // Whether the emitter's emission has a texture: a drawn sample's radiance is then multiplied
+  // by emission_texel(chunk, k) (where valid and front-facing) before use.
+  bool has_emission_texture() const { return emission_texture_; }
+  Vec3d emission_texel(const light_sample_lanes::Chunk& chunk, int k) const;
 
   static constexpr std::size_t kCachedTriangles = 4;
 
@@ -151,6 +162,8 @@ class EmitterSampler {
   // distance and its barycentrics b.
   void weigh(LightSample& sample, const EmitterTriangle& t, const Choice& choice, const View& view,
              const Vec3d& b) const;
+  // The texture coordinates of lane k of a drawn chunk.
+  TexCoords texcoord_of(const light_sample_lanes::Chunk& chunk, int k) const;
 
   const Emitter& emitter_;
   const FlatScene& flat_;
@@ -161,7 +174,7 @@ class EmitterSampler {
   LightSampling sampling_;
   std::array<View, kCachedTriangles> cache_{};
   bool cached_ = false;  // cache_ is set
-  std::vector<View> uncached_;  // sample_many's views of triangles past the cache, one per lane
+  std::vector<View> uncached_;  // draw's views of triangles past the cache, one per lane
 };
 
 // The shadow ray from a shading point to a light sample: from `origin` (already offset off the
