@@ -180,8 +180,13 @@ TEST_CASE("EmitterSampler::sample_many: sample's bits in every lane, whatever th
   for (int i = 0; i < 8; ++i)
     octagon.emplace_back(std::cos(i * 0.785f) * (1.0f + 0.1f * float(i)), std::sin(i * 0.785f), 1.0f);
   rt::Scene fan = floor_and_emitter(octagon, Vec3d(2.0), diffuse_material(Vec3d(0.5)));
+  // One, three and four triangles: the lanes read each triangle's inputs from its slot, as for the quad.
+  std::vector<rt::Scene> fans;
+  for (std::size_t corners : {3, 5, 6})
+    fans.push_back(floor_and_emitter({octagon.begin(), octagon.begin() + std::ptrdiff_t(corners)}, Vec3d(2.0),
+                                     diffuse_material(Vec3d(0.5))));
   int compared = 0, invalid = 0, unlit = 0;
-  for (const rt::Scene* scene : {&quad, &ball, &fan}) {
+  for (const rt::Scene* scene : {&quad, &ball, &fan, &fans[0], &fans[1], &fans[2]}) {
     const rt::FlatScene flat = rt::flatten_scene(*scene);
     const rt::AreaLights lights = rt::collect_area_lights(*scene, flat);
     REQUIRE(lights.emitters.size() == 1);
@@ -262,8 +267,19 @@ TEST_CASE("light sample lanes: the AVX2 build computes the baseline build's bits
       in.b2.v[i] = uniform(0.0, 0.5);
       in.edge_term.v[i] = uniform(0.0, scale);
       in.by_solid_angle[i] = random() % 4 ? -1 : 0;
+      const Vec3d normal = glm::normalize(Vec3d(uniform(-1.0, 1.0), uniform(-1.0, 1.0), uniform(-1.0, 1.0)));
+      in.normal.x.v[i] = normal.x;
+      in.normal.y.v[i] = normal.y;
+      in.normal.z.v[i] = normal.z;
+      in.area.v[i] = uniform(0.0, scale * scale);
+      in.probability.v[i] = uniform(0.01, 1.0);
     }
+    fill(in.solid_radiance, 10.0);
+    for (double& e : in.emission) e = uniform(0.0, 10.0);
     in.sin_alpha.v[2] = 0.0;  // a zero denominator: q = 1
+    // Every other round, the per-triangle inputs from 1 to 4 slots.
+    in.slots = round % 2 ? 1 + round / 2 % lanes::Input::kSlots : 0;
+    for (double& slot : in.slot.v) slot = in.slots ? double(random() % std::uint64_t(in.slots)) : 0.0;
     const int count = 1 + round % lanes::kLanes;
     lanes::Output a, b;
     lanes::baseline_kernels().sample(in, count, a);
@@ -271,7 +287,9 @@ TEST_CASE("light sample lanes: the AVX2 build computes the baseline build's bits
     for (int i = 0; i < count; ++i) {
       CHECK(a.valid[i] == b.valid[i]);
       if (!a.valid[i]) continue;
-      for (const auto& [x, y] : {std::pair{&a.point, &b.point}, std::pair{&a.direction, &b.direction}})
+      CHECK(a.front[i] == b.front[i]);
+      for (const auto& [x, y] : {std::pair{&a.point, &b.point}, std::pair{&a.direction, &b.direction},
+                                 std::pair{&a.normal, &b.normal}, std::pair{&a.radiance_over_pdf, &b.radiance_over_pdf}})
         CHECK((std::memcmp(&x->x.v[i], &y->x.v[i], 8) == 0 && std::memcmp(&x->y.v[i], &y->y.v[i], 8) == 0 &&
                std::memcmp(&x->z.v[i], &y->z.v[i], 8) == 0));
       for (const auto& [x, y] : {std::pair{&a.b1, &b.b1}, std::pair{&a.b2, &b.b2}, std::pair{&a.error_bound, &b.error_bound},
@@ -570,7 +588,7 @@ TEST_CASE("light sample lanes: emit gives the scalar terms and shadow_ray_to_sam
         to.z.v[i] = v.z;
       };
       set(chunk.out.point, sample.light_point.point);
-      set(chunk.in.normal, sample.light_point.geometric_normal);
+      set(chunk.out.normal, sample.light_point.geometric_normal);
       chunk.out.error_bound.v[i] = sample.light_point.error_bound;
       set(chunk.out.direction, sample.direction);
       set(chunk.out.radiance_over_pdf, sample.radiance_over_pdf);

@@ -325,24 +325,70 @@ LightSample EmitterSampler::sample(Vec2d u) {
   return sample;
 }
 
+namespace {
+
+void set_lane(light_sample_lanes::Vec3& to, int k, const Vec3d& v) {
+  to.x.v[k] = v.x;
+  to.y.v[k] = v.y;
+  to.z.v[k] = v.z;
+}
+
+}  // namespace
+
+void EmitterSampler::put_triangle(light_sample_lanes::Input& in, int entry, std::size_t triangle, double probability,
+                                  const View& seen) const {
+  const EmitterTriangle& t = emitter_.triangles[triangle];
+  set_lane(in.p0, entry, t.p0);
+  set_lane(in.p1, entry, t.p1);
+  set_lane(in.p2, entry, t.p2);
+  in.edge_term.v[entry] = t.frame.edge_term;
+  set_lane(in.normal, entry, t.normal);
+  in.area.v[entry] = t.area;
+  in.probability.v[entry] = probability;
+  if (seen.by_solid_angle) {
+    const SphericalTriangle& spherical = seen.spherical;
+    in.cos_alpha.v[entry] = spherical.cos_alpha();
+    in.sin_alpha.v[entry] = spherical.sin_alpha();
+    in.cos_c.v[entry] = spherical.cos_c();
+    set_lane(in.a, entry, spherical.a());
+    set_lane(in.b, entry, spherical.b());
+    set_lane(in.c_perp, entry, spherical.c_perp());
+    set_lane(in.solid_radiance, entry, seen.radiance_over_pdf);
+  } else {
+    // The warp's inputs are read but not used: any finite values.
+    in.cos_alpha.v[entry] = in.sin_alpha.v[entry] = in.cos_c.v[entry] = 0.0;
+    set_lane(in.a, entry, Vec3d(1.0, 0.0, 0.0));
+    set_lane(in.b, entry, Vec3d(0.0, 1.0, 0.0));
+    set_lane(in.c_perp, entry, Vec3d(0.0, 0.0, 1.0));
+    set_lane(in.solid_radiance, entry, Vec3d(0.0));
+  }
+}
+
 void EmitterSampler::draw(std::span<const Vec2d> u, light_sample_lanes::Chunk& chunk) {
   namespace lanes = light_sample_lanes;
   static const lanes::Kernels& kernels = lanes::best_kernels();
   lanes::Input& in = chunk.in;
   std::array<Choice, lanes::kLanes> choices;
-  // One view per lane for triangles past the cache, allocated only for emitters that have them.
-  if (emitter_.triangles.size() > kCachedTriangles) uncached_.resize(lanes::kLanes);
   for (int axis = 0; axis < 3; ++axis) in.point[axis] = point_[axis];
   const Vec3d emission(scene_.materials[emitter_.material].emission);
   for (int axis = 0; axis < 3; ++axis) in.emission[axis] = emission[axis];
-  const auto set = [](lanes::Vec3& to, int k, const Vec3d& v) {
-    to.x.v[k] = v.x;
-    to.y.v[k] = v.y;
-    to.z.v[k] = v.z;
-  };
+  // An emitter of at most kCachedTriangles triangles has them in the slots, its views all set up;
+  // a larger one has each lane's, with one view per lane for triangles past the cache.
+  const bool by_slot = emitter_.triangles.size() <= std::size_t(lanes::Input::kSlots);
+  static_assert(lanes::Input::kSlots <= kCachedTriangles);
+  in.slots = by_slot ? static_cast<int>(emitter_.triangles.size()) : 0;
+  if (by_slot) {
+    if (!cached_) view_cached_triangles();
+    const std::vector<double>& cdf = emitter_.cdf;
+    for (int s = 0; s < in.slots; ++s)  // choose's probability of triangle s
+      put_triangle(in, s, std::size_t(s), cdf[std::size_t(s)] - (s > 0 ? cdf[std::size_t(s) - 1] : 0.0),
+                   cache_[std::size_t(s)]);
+  } else if (emitter_.triangles.size() > kCachedTriangles) {
+    uncached_.resize(lanes::kLanes);
+  }
   const int count = chunk.count = static_cast<int>(std::min<std::size_t>(lanes::kLanes, u.size()));
-  // Gather each lane's triangle and warp; the lanes past `count` up to a multiple of 4 repeat the
-  // last one.
+  // Gather each lane's sample (and without slots its triangle); the lanes past `count` up to a
+  // multiple of 4 repeat the last one.
   const int padded = (count + 3) / 4 * 4;
   // The choices first, in a pass of their own (a choice read back right after it was written
   // stalled store forwarding).
@@ -353,42 +399,28 @@ void EmitterSampler::draw(std::span<const Vec2d> u, light_sample_lanes::Chunk& c
   for (int k = 0; k < padded; ++k) {
     const Vec2d uk = u_of(k);
     const Choice& choice = choices[std::size_t(k)];
-    View* spill = uncached_.empty() ? nullptr : &uncached_[std::size_t(k)];  // read past the cache only
-    const View& seen = view(choice.triangle, spill);
-    const EmitterTriangle& t = emitter_.triangles[choice.triangle];
     chunk.triangle[k] = static_cast<std::uint32_t>(choice.triangle);
-    set(in.p0, k, t.p0);
-    set(in.p1, k, t.p1);
-    set(in.p2, k, t.p2);
-    in.edge_term.v[k] = t.frame.edge_term;
-    set(in.normal, k, t.normal);
-    in.area.v[k] = t.area;
-    in.probability.v[k] = choice.probability;
-    in.by_solid_angle[k] = seen.by_solid_angle ? -1 : 0;
-    if (seen.by_solid_angle) {
-      const SphericalTriangle& spherical = seen.spherical;
-      in.angle.v[k] = spherical.warp_angle(uk.x);
+    const View* seen;
+    if (by_slot) {
+      seen = &cache_[choice.triangle];
+      in.slot.v[k] = double(choice.triangle);
+    } else {
+      View* spill = uncached_.empty() ? nullptr : &uncached_[std::size_t(k)];  // read past the cache only
+      seen = &view(choice.triangle, spill);
+      put_triangle(in, k, choice.triangle, choice.probability, *seen);
+    }
+    in.by_solid_angle[k] = seen->by_solid_angle ? -1 : 0;
+    if (seen->by_solid_angle) {
+      in.angle.v[k] = seen->spherical.warp_angle(uk.x);
       in.v.v[k] = choice.v;
       in.b1.v[k] = in.b2.v[k] = 0.0;  // read but not used
-      in.cos_alpha.v[k] = spherical.cos_alpha();
-      in.sin_alpha.v[k] = spherical.sin_alpha();
-      in.cos_c.v[k] = spherical.cos_c();
-      set(in.a, k, spherical.a());
-      set(in.b, k, spherical.b());
-      set(in.c_perp, k, spherical.c_perp());
-      set(in.solid_radiance, k, seen.radiance_over_pdf);
       chunk.b0[k] = 0.0;  // set from the kernel's b1, b2 by emission_texel
     } else {
       const Vec3d b = sample_triangle_uniform({uk.x, choice.v});
       chunk.b0[k] = b.x;
       in.b1.v[k] = b.y;
       in.b2.v[k] = b.z;
-      // The warp's inputs are read but not used: any finite values.
-      in.angle.v[k] = in.v.v[k] = in.cos_alpha.v[k] = in.sin_alpha.v[k] = in.cos_c.v[k] = 0.0;
-      set(in.a, k, Vec3d(1.0, 0.0, 0.0));
-      set(in.b, k, Vec3d(0.0, 1.0, 0.0));
-      set(in.c_perp, k, Vec3d(0.0, 0.0, 1.0));
-      set(in.solid_radiance, k, Vec3d(0.0));
+      in.angle.v[k] = in.v.v[k] = 0.0;  // read but not used
     }
   }
   kernels.sample(in, count, chunk.out);

@@ -120,6 +120,19 @@ RT_LANE_INLINE D4 shift_right(const D4& a) {
   return {_mm256_castsi256_pd(_mm256_srli_epi64(_mm256_castpd_si256(a.v), bits))};
 }
 
+// A lane's entry of a four-entry table (table[slot], slot 0 .. 3 exact in a double lane): one
+// vpermps per lookup, the index set up once.
+struct Lookup {
+  __m256i index;  // the 32-bit halves (2 slot, 2 slot + 1) of each lane
+};
+RT_LANE_INLINE Lookup make_lookup(const D4& slot) {
+  const __m256i twice = _mm256_cvtepi32_epi64(_mm_slli_epi32(_mm256_cvttpd_epi32(slot.v), 1));
+  return {_mm256_or_si256(twice, _mm256_slli_epi64(_mm256_add_epi64(twice, _mm256_set1_epi64x(1)), 32))};
+}
+RT_LANE_INLINE D4 lookup(const double* table, const Lookup& l) {
+  return {_mm256_castps_pd(_mm256_permutevar8x32_ps(_mm256_castpd_ps(_mm256_loadu_pd(table)), l.index))};
+}
+
 }  // namespace avx2
 #else
 inline namespace sse2 {
@@ -285,6 +298,24 @@ RT_LANE_INLINE D4 clamp(const D4& v, const D4& lo, const D4& hi) {
 RT_LANE_INLINE M4 operator==(const D4& a, const D4& b) {
   return ~(a != b);
 }
+
+// A lane's entry of a four-entry table (table[slot], slot 0 .. 3 exact in a double lane); the
+// AVX2 build has its own.
+#ifndef __AVX2__
+struct Lookup {
+  M4 is[4];  // [s]: the lane's slot is s (from 1)
+};
+RT_LANE_INLINE Lookup make_lookup(const D4& slot) {
+  Lookup l;
+  for (int s = 1; s < 4; ++s) l.is[s] = slot == broadcast(double(s));
+  return l;
+}
+RT_LANE_INLINE D4 lookup(const double* table, const Lookup& l) {
+  D4 v = broadcast(table[0]);
+  for (int s = 1; s < 4; ++s) v = select(l.is[s], broadcast(table[s]), v);
+  return v;
+}
+#endif
 
 // Round to the nearest integer, ties to even, for |x| < 2^51: adding and subtracting 1.5 * 2^52
 // leaves no fraction bits (the round-to-nearest of the addition does the rounding).

@@ -67,6 +67,33 @@ template <int N>
   return lm::Splat<Wide<N>>::value(x);
 }
 
+// Where lanes g .. g + 4N - 1 read their triangle's inputs (Input's per-triangle fields): their
+// own lanes, or the entries of their slots.
+template <int N>
+struct PerLane {
+  PerLane(const Input&, int g) : first(g) {}
+  Wide<N> operator()(const Lanes& field) const { return at<N>(field, first); }
+  Vec3W<N> operator()(const Vec3& field) const { return at<N>(field, first); }
+  int first;
+};
+template <int N>
+struct BySlot {
+  BySlot(const Input& in, int g) {
+    for (int i = 0; i < N; ++i) {
+      lm::D4 slot;
+      lm::load(slot, in.slot.v + g + 4 * i);
+      lookups[i] = lm::make_lookup(slot);
+    }
+  }
+  Wide<N> operator()(const Lanes& field) const {
+    Wide<N> v;
+    for (int i = 0; i < N; ++i) v.g[i] = lm::lookup(field.v, lookups[i]);
+    return v;
+  }
+  Vec3W<N> operator()(const Vec3& field) const { return {(*this)(field.x), (*this)(field.y), (*this)(field.z)}; }
+  lm::Lookup lookups[N];
+};
+
 // glm's dot, cross and normalize, with glm's order of operations (lane_math.h's Xyz).
 template <int N>
 [[gnu::always_inline]] static inline Wide<N> dot(const Vec3W<N>& a, const Vec3W<N>& b) {
@@ -94,18 +121,18 @@ template <int N>
 }
 
 // SphericalTriangle::sample (sampling.cpp).
-template <int N>
-[[gnu::always_inline]] static inline Vec3W<N> arvo_direction(const Input& in, int g) {
+template <int N, class Fetch>
+[[gnu::always_inline]] static inline Vec3W<N> arvo_direction(const Input& in, int g, const Fetch& fetch) {
   const Wide<N> zero = splat<N>(0.0), one = splat<N>(1.0);
   Wide<N> s, t;
   lm::sincos(at<N>(in.angle, g), s, t);
-  const Wide<N> cos_alpha = at<N>(in.cos_alpha, g), sin_alpha = at<N>(in.sin_alpha, g);
-  const Wide<N> uu = t - cos_alpha, vv = s + sin_alpha * at<N>(in.cos_c, g);
+  const Wide<N> cos_alpha = fetch(in.cos_alpha), sin_alpha = fetch(in.sin_alpha);
+  const Wide<N> uu = t - cos_alpha, vv = s + sin_alpha * fetch(in.cos_c);
   const Wide<N> denominator = (vv * s + uu * t) * sin_alpha;
   const Wide<N> q = lm::select(denominator != zero,
                                lm::clamp(((vv * t - uu * s) * cos_alpha - vv) / denominator, -one, one), one);
-  const Vec3W<N> b = at<N>(in.b, g);
-  const Vec3W<N> c_prime = combine(q, at<N>(in.a, g), lm::sqrt(lm::max(zero, one - q * q)), at<N>(in.c_perp, g));
+  const Vec3W<N> b = fetch(in.b);
+  const Vec3W<N> c_prime = combine(q, fetch(in.a), lm::sqrt(lm::max(zero, one - q * q)), fetch(in.c_perp));
   const Wide<N> cosine = dot(c_prime, b);
   const Wide<N> z = one - at<N>(in.v, g) * (one - cosine);
   const Vec3W<N> across = normalize(Vec3W<N>{c_prime.x - cosine * b.x, c_prime.y - cosine * b.y, c_prime.z - cosine * b.z});
@@ -113,15 +140,16 @@ template <int N>
 }
 
 // Lanes g .. g + 4N - 1 of the kernel.
-template <int N>
+template <int N, template <int> class Fetch>
 [[gnu::always_inline]] static inline void sample_groups(const Input& in, int g, Output& out) {
+  const Fetch<N> fetch(in, g);
   const Wide<N> zero = splat<N>(0.0), one = splat<N>(1.0);
   const Vec3W<N> point{splat<N>(in.point[0]), splat<N>(in.point[1]), splat<N>(in.point[2])};
-  const Vec3W<N> p0 = at<N>(in.p0, g), p1 = at<N>(in.p1, g), p2 = at<N>(in.p2, g);
+  const Vec3W<N> p0 = fetch(in.p0), p1 = fetch(in.p1), p2 = fetch(in.p2);
   const WideMask<N> by_solid_angle = mask_at<N>(in.by_solid_angle, g);
 
   // barycentrics_along(point, w, p0, p1, p2) for the warped direction w.
-  const Vec3W<N> w = arvo_direction<N>(in, g);
+  const Vec3W<N> w = arvo_direction<N>(in, g, fetch);
   const Vec3W<N> e1 = minus(p1, p0), e2 = minus(p2, p0);
   const Vec3W<N> pv = cross(w, e2);
   const Wide<N> determinant = dot(e1, pv);
@@ -148,7 +176,7 @@ template <int N>
   put(out.point, g, p);
   const Wide<N> largest = lm::max(lm::max(lm::abs(p.x), lm::abs(p.y)), lm::abs(p.z));
   put(out.error_bound, g,
-      splat<N>(ray_offset_detail::kScaledRoundoff) * (splat<N>(std::sqrt(3.0)) * largest + at<N>(in.edge_term, g)));
+      splat<N>(ray_offset_detail::kScaledRoundoff) * (splat<N>(std::sqrt(3.0)) * largest + fetch(in.edge_term)));
 
   // The unit direction and distance from the shading point (EmitterSampler::sample).
   const Vec3W<N> offset = minus(p, point);
@@ -161,10 +189,12 @@ template <int N>
 
   // EmitterSampler::weigh: the solid-angle density by the view's value, or by area probability /
   // area * r^2 / cos(theta'); zero where the triangle's back faces the point.
-  const Wide<N> cos_emitter = -dot(at<N>(in.normal, g), direction);
+  const Vec3W<N> normal = fetch(in.normal);
+  put(out.normal, g, normal);
+  const Wide<N> cos_emitter = -dot(normal, direction);
   const WideMask<N> front = cos_emitter > zero;
-  const Wide<N> by_area = (at<N>(in.area, g) * cos_emitter) / ((at<N>(in.probability, g) * distance) * distance);
-  const Vec3W<N> solid = at<N>(in.solid_radiance, g);
+  const Wide<N> by_area = (fetch(in.area) * cos_emitter) / ((fetch(in.probability) * distance) * distance);
+  const Vec3W<N> solid = fetch(in.solid_radiance);
   const auto radiance = [&](const Wide<N>& solid_radiance, double emission) {
     return lm::select(front, lm::select(by_solid_angle, solid_radiance, splat<N>(emission) * by_area), zero);
   };
@@ -181,8 +211,13 @@ void sample(const Input& in, int count, Output& out) {
   constexpr int kWidest = 2;
 #endif
   int g = 0;
-  for (; g + 4 * kWidest <= count; g += 4 * kWidest) sample_groups<kWidest>(in, g, out);
-  for (; g < count; g += 4) sample_groups<1>(in, g, out);
+  if (in.slots == 0) {
+    for (; g + 4 * kWidest <= count; g += 4 * kWidest) sample_groups<kWidest, PerLane>(in, g, out);
+    for (; g < count; g += 4) sample_groups<1, PerLane>(in, g, out);
+  } else {
+    for (; g + 4 * kWidest <= count; g += 4 * kWidest) sample_groups<kWidest, BySlot>(in, g, out);
+    for (; g < count; g += 4) sample_groups<1, BySlot>(in, g, out);
+  }
 }
 
 // pow(x[k], y) for the 16 lanes: four groups of four at a time with AVX2 (one register each),
@@ -302,7 +337,7 @@ void emit(const Shading& shading, const Chunk& chunk, const FacingOutput& facing
     lm::load(direction, chunk.out.direction, g);
     lm::load(radiance, chunk.out.radiance_over_pdf, g);
     lm::load(light_point, chunk.out.point, g);
-    lm::load(light_normal, chunk.in.normal, g);
+    lm::load(light_normal, chunk.out.normal, g);
     D4 n_dot_l, power, error_bound;
     lm::load(n_dot_l, facing.n_dot_l.v + g);
     lm::load(power, facing.power.v + g);

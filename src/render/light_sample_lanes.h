@@ -19,38 +19,43 @@ constexpr int kLanes = 16;  // samples per call at most; a multiple of 4
 using Lanes = LaneArray<kLanes>;
 using Vec3 = Vec3Lanes<kLanes>;
 
-// Per lane: the sample's emitter triangle and how it is drawn (gathered by EmitterSampler).
+// A chunk's samples as EmitterSampler gathers them. The per-sample fields have one entry per lane.
+// The per-triangle fields (Arvo's warp set-up, the triangle, its weights) have one per lane too
+// when slots == 0; when the emitter has at most kSlots triangles, slots is their number, entry s
+// is triangle s's and each lane reads the entry of its `slot` (gathered once, not per sample).
 struct Input {
-  Input() {}  // not zeroed: every lane in use is written
+  Input() {}  // not zeroed: every lane and slot in use is written
+  static constexpr int kSlots = 4;
+  int slots = 0;
+  Lanes slot;  // where slots > 0: the lane's triangle (0 .. slots - 1)
   double point[3];  // the shading point, the same for every lane
-  // Arvo's warp (SphericalTriangle's members): the angle u.x * area - alpha (radians), the second
-  // sample coordinate, the angle at A's cosine and sine, cos of side AB, and the unit vectors A, B
-  // and C's part orthogonal to A. Read only where by_solid_angle.
-  Lanes angle, v, cos_alpha, sin_alpha, cos_c;
+  // Per sample: Arvo's angle u.x * area - alpha (radians) and second sample coordinate, read only
+  // where by_solid_angle; elsewhere the barycentrics b1, b2 of the point (sample_triangle_uniform).
+  Lanes angle, v, b1, b2;
+  alignas(32) std::int64_t by_solid_angle[kLanes];  // all ones or 0
+  // Per triangle: the rest of the warp (SphericalTriangle's members: the angle at A's cosine and
+  // sine, cos of side AB, and the unit vectors A, B and C's part orthogonal to A), read only where
+  // by_solid_angle; the triangle (p0, p1, p2) and make_triangle_frame's edge term; and
+  // EmitterSampler::weigh's inputs: the triangle's unit normal (its front side), area (scene
+  // units^2) and probability, and where by_solid_angle the emission over pdf (View's).
+  Lanes cos_alpha, sin_alpha, cos_c;
   Vec3 a, b, c_perp;
-  // The triangle (p0, p1, p2) and make_triangle_frame's edge term.
   Vec3 p0, p1, p2;
   Lanes edge_term;
-  // Where !by_solid_angle: the barycentrics b1, b2 of the point (sample_triangle_uniform).
-  Lanes b1, b2;
-  alignas(32) std::int64_t by_solid_angle[kLanes];  // all ones or 0
-  // EmitterSampler::weigh's inputs: the triangle's unit normal (its front side), area (scene
-  // units^2) and probability, and where by_solid_angle the emission over pdf (View's); the
-  // emitter's emission (linear RGB), the same in every lane.
   Vec3 normal;
   Lanes area, probability;
   Vec3 solid_radiance;
-  double emission[3];
+  double emission[3];  // the emitter's emission (linear RGB), the same in every lane
 };
 
 // Per lane: the sample's barycentrics b1, b2, surface point and error bound (make_surface_point),
 // its unit direction and distance from the shading point, and whether it has one (valid: the
 // direction met the triangle's plane and the point is not the shading point); where valid, its
 // emitted radiance over pdf (LightSample's, zero where the triangle's back faces the point) and
-// whether the front does.
+// whether the front does; the triangle's normal.
 struct Output {
   Output() {}
-  Vec3 point, direction;
+  Vec3 point, direction, normal;
   Lanes b1, b2, error_bound, distance;
   alignas(32) std::int64_t valid[kLanes];  // all ones or 0
   Vec3 radiance_over_pdf;

@@ -21,8 +21,9 @@
 namespace rt {
 
 namespace light_sample_lanes {
+struct Input;
 struct Chunk;
-}
+}  // namespace light_sample_lanes
 
 // How a light sample picks its point on the chosen triangle. area: uniformly by area. solid_angle:
 // uniformly in the solid angle the triangle subtends (Arvo 1995), which removes the 1/r^2 and
@@ -162,6 +163,10 @@ class EmitterSampler {
   // distance and its barycentrics b.
   void weigh(LightSample& sample, const EmitterTriangle& t, const Choice& choice, const View& view,
              const Vec3d& b) const;
+  // Triangle `triangle`'s per-triangle inputs of the lanes, with its probability and view, as entry
+  // `entry` (a slot or a lane).
+  void put_triangle(light_sample_lanes::Input& in, int entry, std::size_t triangle, double probability,
+                    const View& seen) const;
   // The texture coordinates of lane k of a drawn chunk.
   TexCoords texcoord_of(const light_sample_lanes::Chunk& chunk, int k) const;
 
