@@ -536,7 +536,8 @@ TEST_CASE("light sample lanes: facing gives the scalar n.l and the pow of the sc
 }
 
 // The emit kernel gives shade.cpp's scalar term, radiance (C_d n.l + C_s power) / (pi N), and
-// shadow_ray_to_sample's ray from offset_ray_origin's origin, bit for bit, in both builds, with
+// shadow_ray_to_sample's ray from offset_ray_origin's origin (set_origins' for either side of the
+// surface), bit for bit, in both builds, with
 // robust and fixed offsets, light points on either side and samples at the shading point.
 TEST_CASE("light sample lanes: emit gives the scalar terms and shadow_ray_to_sample's rays") {
   namespace lanes = rt::light_sample_lanes;
@@ -558,14 +559,13 @@ TEST_CASE("light sample lanes: emit gives the scalar terms and shadow_ray_to_sam
     surface.error_bound = 1e-6 * scale * positive(random);
     const Vec3d diffuse = random_vec(), specular = random_vec();
     lanes::Shading shading;
-    const Vec3f origins[2] = {rt::offset_ray_origin(policy, surface, surface.geometric_normal),
-                              rt::offset_ray_origin(policy, surface, -surface.geometric_normal)};
     for (int axis = 0; axis < 3; ++axis) {
+      shading.point[axis] = surface.point[axis];
       shading.geometric_normal[axis] = surface.geometric_normal[axis];
       shading.diffuse[axis] = diffuse[axis];
       shading.specular[axis] = specular[axis];
-      for (int side = 0; side < 2; ++side) shading.origin[side][axis] = origins[side][axis];
     }
+    shading.error_bound = surface.error_bound;
     shading.scale = 1.0 / (std::numbers::pi * double(1 + random() % 64));
     shading.highlights = round % 3 != 0;
     shading.fixed_offset = policy.mode == rt::RayOffset::Mode::fixed;
@@ -597,6 +597,11 @@ TEST_CASE("light sample lanes: emit gives the scalar terms and shadow_ray_to_sam
     }
     for (const lanes::Kernels* kernels : {&lanes::baseline_kernels(), lanes::avx2_kernels()}) {
       if (!kernels) continue;
+      kernels->set_origins(shading);
+      for (int side = 0; side < 2; ++side) {
+        const Vec3f expected = rt::offset_ray_origin(policy, surface, side == 0 ? surface.geometric_normal : -surface.geometric_normal);
+        REQUIRE(same(Vec3f(shading.origin[side][0], shading.origin[side][1], shading.origin[side][2]), expected));
+      }
       lanes::EmitOutput out;
       kernels->emit(shading, chunk, facing, lit, out);
       for (int i = 0; i < chunk.count; ++i) {

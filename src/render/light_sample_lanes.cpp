@@ -315,6 +315,23 @@ void facing(const Shading& shading, const Chunk& chunk, FacingOutput& out) {
     for (double& p : out.power.v) p = 1.0;
 }
 
+void set_origins(Shading& shading) {
+  // One lane per axis (the fourth unused): offset_ray_origin along n, then along -n.
+  alignas(32) double point[4] = {shading.point[0], shading.point[1], shading.point[2], 0.0};
+  alignas(32) double normal[4] = {shading.geometric_normal[0], shading.geometric_normal[1], shading.geometric_normal[2], 0.0};
+  D4 p, n;
+  lm::load(p, point);
+  lm::load(n, normal);
+  for (int side = 0; side < 2; ++side) {
+    const D4 away = side == 0 ? n : -n;
+    const lm::F4 origin = shading.fixed_offset ? lm::to_float(p + lm::broadcast(shading.epsilon) * away)
+                                               : lm::round_away(p + lm::broadcast(shading.error_bound) * away, away);
+    alignas(16) float lanes[4];
+    _mm_store_ps(lanes, origin);
+    for (int axis = 0; axis < 3; ++axis) shading.origin[side][axis] = lanes[axis];
+  }
+}
+
 // The term, then shadow_ray_to_sample: the origin on the side the direction leaves by, the target
 // offset off the emitter towards it (offset_ray_origin), the float32 direction between them and
 // the shortened tfar, each with the scalar code's operations.
@@ -397,14 +414,15 @@ void emit(const Shading& shading, const Chunk& chunk, const FacingOutput& facing
 
 #ifdef RT_LIGHT_SAMPLE_LANES_AVX2
 const Kernels* avx2_kernels() {
-  static const Kernels kernels{&avx2::sample, &avx2::powers, &avx2::spherical, &avx2::facing, &avx2::emit};
+  static const Kernels kernels{&avx2::sample, &avx2::powers, &avx2::spherical, &avx2::facing, &avx2::emit,
+                                      &avx2::set_origins};
   __builtin_cpu_init();  // idempotent; needed when called before the constructors have run
   return __builtin_cpu_supports("avx2") ? &kernels : nullptr;
 }
 #else
 const Kernels& baseline_kernels() {
   static const Kernels kernels{&baseline::sample, &baseline::powers, &baseline::spherical, &baseline::facing,
-                               &baseline::emit};
+                               &baseline::emit, &baseline::set_origins};
   return kernels;
 }
 

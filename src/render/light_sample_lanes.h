@@ -89,12 +89,12 @@ struct SphericalOutput {
 };
 
 // What the area-light terms read of the shading point (shade.cpp; world space, double): the
-// Blinn-Phong inputs, the geometric normal and the shadow rays' origins on either side of the
-// surface (offset_ray_origin, float32), and the ray offset policy.
+// Blinn-Phong inputs, the surface (SurfacePoint's point, geometric normal and error bound), the
+// ray offset policy and the shadow rays' origins on either side (float32, set_origins').
 struct Shading {
   Shading() {}
   double normal[3], to_eye[3];  // shading normal, unit; towards the ray's origin, unit
-  double geometric_normal[3];
+  double point[3], geometric_normal[3], error_bound = 0.0;
   double diffuse[3], specular[3];  // C_d (texture applied) and C_s
   double shininess = 0.0;
   double scale = 0.0;  // 1 / (pi N), N samples per hit
@@ -132,6 +132,8 @@ struct Kernels {
   void (*spherical)(const SphericalInput& in, SphericalOutput& out);
   void (*facing)(const Shading& shading, const Chunk& chunk, FacingOutput& out);
   void (*emit)(const Shading& shading, const Chunk& chunk, const FacingOutput& facing, bool lit, EmitOutput& out);
+  // shading.origin[s] = offset_ray_origin(policy, surface, s == 0 ? n : -n), n the geometric normal.
+  void (*set_origins)(Shading& shading);
 };
 
 const Kernels& baseline_kernels();

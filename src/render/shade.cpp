@@ -209,22 +209,21 @@ template <class Shadows>
   constexpr std::uint32_t kChunk = lanes::kLanes;
   std::array<Vec2d, kChunk> points;
   lanes::Shading shading;
-  const Vec3d& geometric_normal = lit.surface.geometric_normal;
-  const Vec3f origins[2] = {offset_ray_origin(context.ray_offset, lit.surface, geometric_normal),
-                            offset_ray_origin(context.ray_offset, lit.surface, -geometric_normal)};
   for (int axis = 0; axis < 3; ++axis) {
     shading.normal[axis] = lit.normal[axis];
     shading.to_eye[axis] = lit.to_eye[axis];
-    shading.geometric_normal[axis] = geometric_normal[axis];
+    shading.point[axis] = point[axis];
+    shading.geometric_normal[axis] = lit.surface.geometric_normal[axis];
     shading.diffuse[axis] = lit.diffuse[axis];
     shading.specular[axis] = lit.specular[axis];
-    for (int side = 0; side < 2; ++side) shading.origin[side][axis] = origins[side][axis];
   }
+  shading.error_bound = lit.surface.error_bound;
   shading.shininess = lit.shininess;
   shading.scale = scale;
   shading.highlights = lit.terms.specular || !prune;
   shading.fixed_offset = context.ray_offset.mode == RayOffset::Mode::fixed;
   shading.epsilon = context.ray_offset.epsilon;
+  bool origins_set = false;  // set_origins, once an emitter needs them
   lanes::Chunk chunk;
   lanes::FacingOutput factors;
   lanes::EmitOutput emitted;
@@ -249,6 +248,10 @@ template <class Shadows>
     }
     const auto pattern = static_cast<std::uint32_t>(mix64(path_seed ^ mix64((std::uint64_t(depth) << 32) + e)));
     EmitterSampler sampler(emitter, context.flat, context.scene, context.textures, point, plan.options.light_sampling);
+    if (!origins_set) {
+      kernels.set_origins(shading);
+      origins_set = true;
+    }
     for (std::uint32_t first = 0; first < samples; first += kChunk) {
       const auto chunk_points = std::span(points).first(std::min(kChunk, samples - first));
       cmj_samples(first, chunk_points, samples, pattern);
