@@ -179,6 +179,41 @@ struct LitSurface {
   const MaterialPlan& terms;
 };
 
+// What the area-light lanes read of the hit (LitSurface, the offset policy), for N samples per
+// hit (scale = 1 / (pi N)).
+light_sample_lanes::Shading lanes_shading(const LitSurface& lit, const RayOffset& ray_offset, double scale, bool prune) {
+  light_sample_lanes::Shading shading;
+  for (int axis = 0; axis < 3; ++axis) {
+    shading.normal[axis] = lit.normal[axis];
+    shading.to_eye[axis] = lit.to_eye[axis];
+    shading.point[axis] = lit.surface.point[axis];
+    shading.geometric_normal[axis] = lit.surface.geometric_normal[axis];
+    shading.diffuse[axis] = lit.diffuse[axis];
+    shading.specular[axis] = lit.specular[axis];
+  }
+  shading.error_bound = lit.surface.error_bound;
+  shading.shininess = lit.shininess;
+  shading.scale = scale;
+  shading.highlights = lit.terms.specular || !prune;
+  shading.fixed_offset = ray_offset.mode == RayOffset::Mode::fixed;
+  shading.epsilon = ray_offset.epsilon;
+  return shading;
+}
+
+// The emission texture times the radiance of the chunk's samples whose term can be non-zero
+// (valid, the emitter's front facing them, n.l > 0): the lookups the others would waste.
+void apply_emission_texture(const EmitterSampler& sampler, const light_sample_lanes::FacingOutput& factors,
+                            light_sample_lanes::Chunk& chunk) {
+  light_sample_lanes::Vec3& radiance = chunk.out.radiance_over_pdf;
+  for (int k = 0; k < chunk.count; ++k)
+    if (chunk.out.valid[k] && chunk.out.front[k] && factors.n_dot_l.v[k] > 0.0) {
+      const Vec3d textured = Vec3d(radiance.x.v[k], radiance.y.v[k], radiance.z.v[k]) * sampler.emission_texel(chunk, k);
+      radiance.x.v[k] = textured.x;
+      radiance.y.v[k] = textured.y;
+      radiance.z.v[k] = textured.z;
+    }
+}
+
 // The area lights' terms at a hit, in emitter order, each emitter's light_samples samples in
 // pattern order: term_k = L_e,k / pdf_k (C_d n.l_k + C_s max(n.h_k, 0)^sigma) / (pi N) where
 // n.l_k > 0, shadowed by its own ray. The emitter-level rules (unlit material, behind a planar
@@ -208,21 +243,7 @@ template <class Shadows>
   static const lanes::Kernels& kernels = lanes::best_kernels();
   constexpr std::uint32_t kChunk = lanes::kLanes;
   std::array<Vec2d, kChunk> points;
-  lanes::Shading shading;
-  for (int axis = 0; axis < 3; ++axis) {
-    shading.normal[axis] = lit.normal[axis];
-    shading.to_eye[axis] = lit.to_eye[axis];
-    shading.point[axis] = point[axis];
-    shading.geometric_normal[axis] = lit.surface.geometric_normal[axis];
-    shading.diffuse[axis] = lit.diffuse[axis];
-    shading.specular[axis] = lit.specular[axis];
-  }
-  shading.error_bound = lit.surface.error_bound;
-  shading.shininess = lit.shininess;
-  shading.scale = scale;
-  shading.highlights = lit.terms.specular || !prune;
-  shading.fixed_offset = context.ray_offset.mode == RayOffset::Mode::fixed;
-  shading.epsilon = context.ray_offset.epsilon;
+  lanes::Shading shading = lanes_shading(lit, context.ray_offset, scale, prune);
   bool origins_set = false;  // set_origins, once an emitter needs them
   lanes::Chunk chunk;
   lanes::FacingOutput factors;
@@ -257,15 +278,7 @@ template <class Shadows>
       cmj_samples(first, chunk_points, samples, pattern);
       sampler.draw(chunk_points, chunk);
       kernels.facing(shading, chunk, factors);
-      if (!all_zero && sampler.has_emission_texture())
-        for (int k = 0; k < chunk.count; ++k)
-          if (chunk.out.valid[k] && chunk.out.front[k] && factors.n_dot_l.v[k] > 0.0) {
-            lanes::Vec3& radiance = chunk.out.radiance_over_pdf;
-            const Vec3d textured = Vec3d(radiance.x.v[k], radiance.y.v[k], radiance.z.v[k]) * sampler.emission_texel(chunk, k);
-            radiance.x.v[k] = textured.x;
-            radiance.y.v[k] = textured.y;
-            radiance.z.v[k] = textured.z;
-          }
+      if (!all_zero && sampler.has_emission_texture()) apply_emission_texture(sampler, factors, chunk);
       kernels.emit(shading, chunk, factors, !all_zero, emitted);
       for (int k = 0; k < chunk.count; ++k) {
         if (!chunk.out.valid[k]) {
