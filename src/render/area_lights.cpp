@@ -214,12 +214,14 @@ void EmitterSampler::view_cached_triangles() {
   const std::size_t cached = std::min(kCachedTriangles, emitter_.triangles.size());
   for (std::size_t i = 0; i < cached; ++i) {
     const EmitterTriangle& t = emitter_.triangles[i];
-    cache_[i] = View{};
+    cache_[i].by_solid_angle = false;  // its spherical triangle is not read
     if (!needs_spherical(t)) continue;
     corners[count] = {t.p0, t.p1, t.p2};
     which[count++] = i;
   }
-  std::array<SphericalTriangle, kCachedTriangles> spherical;
+  constexpr SphericalTriangle::Unset unset;
+  std::array<SphericalTriangle, kCachedTriangles> spherical{SphericalTriangle(unset), SphericalTriangle(unset),
+                                                            SphericalTriangle(unset), SphericalTriangle(unset)};
   SphericalTriangle::set_up_many(point_, std::span(corners).first(count), spherical);
   for (std::size_t k = 0; k < count; ++k) cache_[which[k]] = view_with(which[k], spherical[k]);
   cached_ = true;

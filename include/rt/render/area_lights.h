@@ -136,6 +136,8 @@ class EmitterSampler {
 
  private:
   struct View {  // the triangle as seen from the point
+    View() = default;
+    explicit View(SphericalTriangle::Unset unset) : spherical(unset) {}  // spherical read only once set
     bool by_solid_angle = false;
     SphericalTriangle spherical;
     // Where by_solid_angle: the emission over the pdf of a direction, the same for every sample
@@ -177,7 +179,8 @@ class EmitterSampler {
   bool emission_texture_;  // the emitter's emission has a texture the samples look up
   Vec3d point_;
   LightSampling sampling_;
-  std::array<View, kCachedTriangles> cache_{};
+  std::array<View, kCachedTriangles> cache_{View(SphericalTriangle::Unset{}), View(SphericalTriangle::Unset{}),
+                                             View(SphericalTriangle::Unset{}), View(SphericalTriangle::Unset{})};
   bool cached_ = false;  // cache_ is set
   std::vector<View> uncached_;  // draw's views of triangles past the cache, one per lane
 };

@@ -50,7 +50,11 @@ double triangle_solid_angle(const Vec3d& p, const Vec3d& a, const Vec3d& b, cons
 // its plane or on a side's line): there is nothing to sample. World space, double.
 class SphericalTriangle {
  public:
-  SphericalTriangle() = default;
+  SphericalTriangle()  // invalid: all zeros
+      : A_(0.0), B_(0.0), C_perp_(0.0), alpha_(0.0), cos_alpha_(0.0), sin_alpha_(0.0), cos_c_(0.0), area_(0.0) {}
+  // Members left unset, for storage that set_up_many fills later (zeroing it showed in profiles).
+  struct Unset {};
+  explicit SphericalTriangle(Unset) {}
   SphericalTriangle(const Vec3d& p, const Vec3d& a, const Vec3d& b, const Vec3d& c);
   // The spherical triangles of triangles (corners[i], world space) seen from p, set up four at a
   // time in SIMD lanes: out[i] (out.size() >= corners.size()) gets SphericalTriangle(p,
@@ -76,10 +80,10 @@ class SphericalTriangle {
   double cos_c() const { return cos_c_; }
 
  private:
-  Vec3d A_{0.0}, B_{0.0};
-  Vec3d C_perp_{0.0};  // unit, C's component orthogonal to A
-  double alpha_ = 0.0, cos_alpha_ = 0.0, sin_alpha_ = 0.0, cos_c_ = 0.0;  // angle at A; cos of side AB
-  double area_ = 0.0;
+  Vec3d A_, B_;
+  Vec3d C_perp_;  // unit, C's component orthogonal to A
+  double alpha_, cos_alpha_, sin_alpha_, cos_c_;  // angle at A; cos of side AB
+  double area_;
 };
 
 // Barycentrics (b0, b1, b2) of the point where the ray from p along w (world space) meets the plane
