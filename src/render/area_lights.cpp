@@ -176,7 +176,12 @@ EmitterSampler::EmitterSampler(const Emitter& emitter, const FlatScene& flat, co
       textures_(textures),
       emission_texture_(textures && textures->has_emission(emitter.material) && has_texcoords(flat)),
       point_(point),
-      sampling_(sampling) {}
+      sampling_(sampling) {
+  // An emitter of at most kSlots triangles (draw's slots) has every view set up before its first
+  // sample anyway: here, the set-up's long chain of divisions, square roots and atan2 overlaps
+  // the caller's independent work before the first draw (the origins, the sample pattern).
+  if (emitter.triangles.size() <= std::size_t(light_sample_lanes::Input::kSlots)) view_cached_triangles();
+}
 
 bool EmitterSampler::needs_spherical(const EmitterTriangle& t) const {
   if (sampling_ == LightSampling::area) return false;
@@ -379,6 +384,16 @@ void EmitterSampler::draw(std::span<const Vec2d> u, light_sample_lanes::Chunk& c
   const bool by_slot = emitter_.triangles.size() <= std::size_t(lanes::Input::kSlots);
   static_assert(lanes::Input::kSlots <= kCachedTriangles);
   in.slots = by_slot ? static_cast<int>(emitter_.triangles.size()) : 0;
+  const int count = chunk.count = static_cast<int>(std::min<std::size_t>(lanes::kLanes, u.size()));
+  // Gather each lane's sample (and without slots its triangle); the lanes past `count` up to a
+  // multiple of 4 repeat the last one.
+  const int padded = (count + 3) / 4 * 4;
+  // The choices first, in a pass of their own (a choice read back right after it was written
+  // stalled store forwarding), and before the slots, which wait for the views' set-up.
+  const auto u_of = [&](int k) { return u[std::size_t(std::min(k, count - 1))]; };
+  std::array<double, lanes::kLanes> uy;
+  for (int k = 0; k < padded; ++k) uy[std::size_t(k)] = u_of(k).y;
+  choose_many(std::span(uy).first(std::size_t(padded)), choices);
   if (by_slot) {
     if (!cached_) view_cached_triangles();
     const std::vector<double>& cdf = emitter_.cdf;
@@ -388,16 +403,6 @@ void EmitterSampler::draw(std::span<const Vec2d> u, light_sample_lanes::Chunk& c
   } else if (emitter_.triangles.size() > kCachedTriangles) {
     uncached_.resize(lanes::kLanes);
   }
-  const int count = chunk.count = static_cast<int>(std::min<std::size_t>(lanes::kLanes, u.size()));
-  // Gather each lane's sample (and without slots its triangle); the lanes past `count` up to a
-  // multiple of 4 repeat the last one.
-  const int padded = (count + 3) / 4 * 4;
-  // The choices first, in a pass of their own (a choice read back right after it was written
-  // stalled store forwarding).
-  const auto u_of = [&](int k) { return u[std::size_t(std::min(k, count - 1))]; };
-  std::array<double, lanes::kLanes> uy;
-  for (int k = 0; k < padded; ++k) uy[std::size_t(k)] = u_of(k).y;
-  choose_many(std::span(uy).first(std::size_t(padded)), choices);
   for (int k = 0; k < padded; ++k) {
     const Vec2d uk = u_of(k);
     const Choice& choice = choices[std::size_t(k)];
