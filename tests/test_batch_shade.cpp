@@ -45,6 +45,7 @@ void check_same_counts(const rt::RayCounts& a, const rt::RayCounts& b) {
   CHECK(a.refraction == b.refraction);
   CHECK(a.see_through == b.see_through);
   CHECK(a.area_light == b.area_light);
+  CHECK(a.area_light_per_emitter == b.area_light_per_emitter);
   CHECK(a.shadow_per_light == b.shadow_per_light);
   CHECK(a.reflection_per_depth == b.reflection_per_depth);
   CHECK(a.hits_per_depth == b.hits_per_depth);
@@ -151,6 +152,32 @@ rt::Scene rules_scene() {
 
 TEST_CASE("batch shading changes no bit: a scene reaching each of its rules", "[batch]") {
   check_batching_is_exact(rules_scene(), "rules scene", true);
+}
+
+// The rules scene lit by area lights as well: a quad emitter above it facing down and a triangle
+// emitter facing away (behind every hit), so that the area-light terms of batched hits (recorded
+// at camera hits, traced at once in the reflection waves) take each emitter-level rule.
+TEST_CASE("batch shading changes no bit: area lights with point lights, reflections four deep", "[batch]") {
+  rt::Scene scene = rules_scene();
+  const auto emitter = [&](const std::vector<std::array<rt::Vec3f, 3>>& triangles, float radiance) {
+    rt::Material m;
+    m.emission = rt::Color(radiance, radiance * 0.9f, radiance * 0.7f);
+    m.emits_light = true;
+    scene.materials.push_back(m);
+    scene.nodes[0].models.push_back(rt::Model{std::make_shared<rt::TriangleMesh>(rt_test::make_flat_mesh(triangles)),
+                                              static_cast<std::uint32_t>(scene.materials.size() - 1), {}});
+  };
+  const rt::Vec3f a(-0.5f, 2.5f, -0.5f), b(0.5f, 2.5f, -0.5f), c(0.5f, 2.5f, 0.5f), d(-0.5f, 2.5f, 0.5f);
+  emitter({{a, b, c}, {a, c, d}}, 6.0f);  // facing down (-y)
+  emitter({{rt::Vec3f(-2, 1, -3), rt::Vec3f(-2, 2, -3), rt::Vec3f(-1, 1, -3)}}, 3.0f);  // facing -z, away
+  check_batching_is_exact(scene, "rules scene with area lights", true);
+  // The cases are reached: samples traced, and both emitter-level rules taken.
+  const rt::FlatScene flat = rt::flatten_scene(scene);
+  const auto accel = rt::build_accel(rt::AccelKind::embree, flat, {});
+  const rt::RayCounts rays = rt::render_image(scene, flat, *accel, {}).rays;
+  CHECK(rays.area_light > 0);
+  CHECK(rays.skipped[static_cast<int>(rt::SkipRule::emitter_behind)] > 0);
+  CHECK(rays.skipped[static_cast<int>(rt::SkipRule::emitter_below_horizon)] > 0);
 }
 
 TEST_CASE("batch shading changes no bit: one convex mesh (the convex rule)", "[batch]") {

@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <type_traits>
 
 #include "rt/render/dielectric.h"
+#include "area_light_terms.h"
 #include "batch_lanes.h"
 #include "shading_margins.h"
 #include "shadow_records.h"
@@ -48,7 +50,7 @@ BatchShader::BatchShader(const ShadingContext& context)
       background_(context.scene.settings.background) {
   const Scene& scene = context.scene;
   const EffectsPlan& plan = context.plan;
-  if (plan.area_lights || context.trace) return;
+  if (context.trace) return;
   for (std::size_t j = 0; j < scene.lights.size(); ++j) {
     const Light& light = scene.lights[j];
     const LightPlan& light_plan = plan.lights[j];
@@ -243,9 +245,26 @@ struct ImmediateSink {
 }  // namespace
 
 template <class Sink>
+void BatchShader::add_area_lights(const Lanes& lanes, int i, int depth, std::uint64_t path_seed, RayCounts& counts,
+                                  Sink& sink) const {
+  const std::uint32_t material = lanes.material[std::size_t(i)];
+  const PlainMaterial& plain = materials_[material];
+  // shade_surface's values, bit for bit: its diffuse is the material's times a white texel (x * 1
+  // is x) and its to_eye the negated unit direction.
+  const SurfacePoint surface{lane(lanes.point, i), lane(lanes.geometric_normal, i), lanes.error_bound.v[i]};
+  const Vec3d normal = lane(lanes.normal, i), to_eye = -lane(lanes.direction, i);
+  const LitSurface lit{surface, normal, to_eye, plain.diffuse, plain.specular, plain.shininess,
+                       context_.plan.materials[material]};
+  if constexpr (std::is_same_v<Sink, ShadowRecorder>)
+    record_area_light_terms(context_, lit, depth, path_seed, counts, sink);
+  else
+    trace_area_light_terms(context_, lit, depth, path_seed, counts, sink.radiance);
+}
+
+template <class Sink>
 std::int32_t BatchShader::shade_lane(const Lanes& lanes, int i, int depth, const Ray& ray, const Hit& hit,
-                                     const Vec3d& throughput, std::int32_t parent, RayCounts& counts, Sink& sink,
-                                     std::vector<Secondary>& next) const {
+                                     const Vec3d& throughput, std::uint64_t path_seed, std::int32_t parent,
+                                     RayCounts& counts, Sink& sink, std::vector<Secondary>& next) const {
   const PlainMaterial& plain = materials_[lanes.material[std::size_t(i)]];
   const EffectsPlan& plan = context_.plan;
   const bool prune = plan.options.prune;
@@ -300,6 +319,8 @@ std::int32_t BatchShader::shade_lane(const Lanes& lanes, int i, int depth, const
     }
   }
 
+  if (plan.area_lights) add_area_lights(lanes, i, depth, path_seed, counts, sink);
+
   if (depth >= context_.scene.settings.max_depth) return -1;
   const Vec3d& reflective = plain.reflective;
   const Vec3d next_throughput = throughput * reflective;
@@ -320,6 +341,7 @@ std::int32_t BatchShader::shade_lane(const Lanes& lanes, int i, int depth, const
   secondary.throughput.y = next_throughput.y;
   secondary.throughput.z = next_throughput.z;
   secondary.weight = reflective;
+  secondary.path_seed = path_seed;
   secondary.parent = parent;
   secondary.child = -1;
   secondary.batched = false;
@@ -328,15 +350,15 @@ std::int32_t BatchShader::shade_lane(const Lanes& lanes, int i, int depth, const
   return static_cast<std::int32_t>(next.size() - 1);
 }
 
-void BatchShader::finish_camera_hit(Workspace& work, int k, const Ray& ray, const Hit& hit, RayCounts& counts,
-                                    PendingShading& pending) const {
+void BatchShader::finish_camera_hit(Workspace& work, int k, const Ray& ray, const Hit& hit, std::uint64_t path_seed,
+                                    RayCounts& counts, PendingShading& pending) const {
   const int i = work.lane_of[std::size_t(k)];
   const auto index = static_cast<std::int32_t>(pending.pixels.size());
   PendingShading::Pixel& pixel = pending.pixels.emplace_back();  // in place: see PixelCentreRays::set_ray
   pixel.emission = materials_[work.lanes.material[std::size_t(i)]].emission;
   pixel.first_term = static_cast<std::uint32_t>(pending.terms.size());
   ShadowRecorder sink{pending, counts, context_.scene.lights.size()};
-  shade_lane(work.lanes, i, 0, ray, hit, Vec3d(1.0), index, counts, sink, work.waves[1]);
+  shade_lane(work.lanes, i, 0, ray, hit, Vec3d(1.0), path_seed, index, counts, sink, work.waves[1]);
   pixel.term_count = static_cast<std::uint32_t>(pending.terms.size()) - pixel.first_term;
 }
 
@@ -359,7 +381,7 @@ void BatchShader::shade_wave(Workspace& work, int depth, RayCounts& counts) cons
       ImmediateSink sink{context_.accel, counts, context_.scene.lights.size(),
                          materials_[work.lanes.material[std::size_t(i)]].emission};
       secondary.child = shade_lane(work.lanes, i, depth, secondary.ray, secondary.hit, secondary.throughput,
-                                   lane_index[std::size_t(i)], counts, sink, next);
+                                   secondary.path_seed, lane_index[std::size_t(i)], counts, sink, next);
       secondary.local = sink.radiance;
     }
     work.lanes.count = 0;
@@ -370,7 +392,8 @@ void BatchShader::shade_wave(Workspace& work, int depth, RayCounts& counts) cons
     secondary.batched = batchable(secondary.hit);
     if (!secondary.batched) {  // find_color's own way, its reflections included
       secondary.color = secondary.hit.found()
-                            ? shade_hit(context_, secondary.ray, secondary.hit, depth, counts, secondary.throughput, 0)
+                            ? shade_hit(context_, secondary.ray, secondary.hit, depth, counts, secondary.throughput,
+                                        secondary.path_seed)
                             : context_.scene.settings.background;
       continue;
     }

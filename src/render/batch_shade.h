@@ -53,9 +53,10 @@ struct Vec3fLanes {
 };
 
 // Shades the hits of render_image's blocks. A hit is batched when it lies on a triangle and its
-// material is plain (no texture, surface map, glass, blend alpha or light emission), in a scene
-// without area lights, traced without a --debug-pixel trace; other hits take shade_camera_hit or
-// shade_hit, as before.
+// material is plain (no texture, surface map, glass, blend alpha or light emission), traced
+// without a --debug-pixel trace; other hits take shade_camera_hit or shade_hit, as before. Point
+// lights are computed in lanes; area lights' terms per hit by shade.cpp's code, from the lanes'
+// surface.
 class BatchShader {
  public:
   static constexpr int kLanes = 16;  // a camera packet of render_image (4 x 4 pixels)
@@ -92,6 +93,7 @@ class BatchShader {
     Hit hit;
     Vec3d throughput;    // the product of the reflection weights up to this ray, its own included
     Vec3d weight;        // its reflection weight: the parent adds weight * colour
+    std::uint64_t path_seed;  // its pixel's (pixel_path_seed), for area-light samples
     std::int32_t parent;  // the pixel in PendingShading (depth 1), else the index in the previous wave
     std::int32_t child;   // its own reflection ray in the next wave, or -1
     bool batched;         // shaded here (local holds its lights' sum); else color came from shade_hit
@@ -120,10 +122,10 @@ class BatchShader {
                Workspace& work) const;
 
   // shade_camera_hit for pixel k of the prepared packet, when work.lane_of[k] >= 0: appends its
-  // pixel to `pending` and counts as shade_camera_hit does; its reflection ray waits in
-  // work.waves[1] until trace_reflections traces the block's.
-  void finish_camera_hit(Workspace& work, int k, const Ray& ray, const Hit& hit, RayCounts& counts,
-                         PendingShading& pending) const;
+  // pixel to `pending` and counts as shade_camera_hit does (`path_seed` as there); its reflection
+  // ray waits in work.waves[1] until trace_reflections traces the block's.
+  void finish_camera_hit(Workspace& work, int k, const Ray& ray, const Hit& hit, std::uint64_t path_seed,
+                         RayCounts& counts, PendingShading& pending) const;
 
   // The colour of a camera ray that hit nothing: the background, as finish_camera_hit gives it for
   // shade_camera_hit's record of the miss.
@@ -155,11 +157,16 @@ class BatchShader {
                         int depth) const;
   void compute_light(Lanes& lanes, std::size_t light) const;
   // The light terms of lane i at `depth` through `sink` (lit / query, as shade_surface's Shadows),
-  // then its reflection ray, if any, appended to `next` (parent `parent`); returns its index or -1.
+  // the point lights' and then the area lights' (samples drawn from `path_seed`), then its
+  // reflection ray, if any, appended to `next` (parent `parent`); returns its index or -1.
   template <class Sink>
   std::int32_t shade_lane(const Lanes& lanes, int i, int depth, const Ray& ray, const Hit& hit,
-                          const Vec3d& throughput, std::int32_t parent, RayCounts& counts, Sink& sink,
-                          std::vector<Secondary>& next) const;
+                          const Vec3d& throughput, std::uint64_t path_seed, std::int32_t parent, RayCounts& counts,
+                          Sink& sink, std::vector<Secondary>& next) const;
+  // The area lights' terms of lane i through `sink`, as shade_surface adds them.
+  template <class Sink>
+  void add_area_lights(const Lanes& lanes, int i, int depth, std::uint64_t path_seed, RayCounts& counts,
+                       Sink& sink) const;
   void shade_wave(Workspace& work, int depth, RayCounts& counts) const;
 
   const ShadingContext& context_;

@@ -318,7 +318,8 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
           }
           pixel_of[k] = static_cast<std::int32_t>(pending.pixels.size());
           if (batching && state.batch.lane_of[std::size_t(lane)] >= 0) {
-            batch.finish_camera_hit(state.batch, lane, rays[std::size_t(k)], hits[std::size_t(k)], counts, pending);
+            batch.finish_camera_hit(state.batch, lane, rays[std::size_t(k)], hits[std::size_t(k)],
+                                    sampled_lights ? pixel_path_seed(xs[k], ys[k], s) : 0, counts, pending);
             continue;
           }
           if (timed[k]) start = __rdtsc();

@@ -15,6 +15,7 @@
 #include "rt/render/dielectric.h"
 #include "rt/render/sampling.h"
 #include "rt/render/surface_maps.h"
+#include "area_light_terms.h"
 #include "light_sample_lanes.h"
 #include "shading_margins.h"
 #include "shadow_records.h"
@@ -166,17 +167,6 @@ struct DeferredShadows : ShadowRecorder {
     pixel.reflection = pixel.has_reflection ? pixel.reflection + reflection : reflection;
     pixel.has_reflection = true;
   }
-};
-
-// What the area-light terms at a hit read: the surface (world space, double) and its colours.
-struct LitSurface {
-  const SurfacePoint& surface;
-  const Vec3d& normal;   // shading normal, unit
-  const Vec3d& to_eye;   // unit, towards the ray's origin
-  const Vec3d& diffuse;  // C_d, texture applied
-  const Vec3d& specular;
-  double shininess;
-  const MaterialPlan& terms;
 };
 
 // What the area-light lanes read of the hit (LitSurface, the offset policy), for N samples per
@@ -616,6 +606,18 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
 }
 
 }  // namespace
+
+void record_area_light_terms(const ShadingContext& context, const LitSurface& lit, int depth, std::uint64_t path_seed,
+                             RayCounts& counts, ShadowRecorder& recorder) {
+  add_area_light_terms(context, lit, depth, path_seed, counts, recorder);
+}
+
+void trace_area_light_terms(const ShadingContext& context, const LitSurface& lit, int depth, std::uint64_t path_seed,
+                            RayCounts& counts, Vec3d& radiance) {
+  ImmediateShadows shadows{context, counts, depth, radiance};
+  add_area_light_terms(context, lit, depth, path_seed, counts, shadows);
+  radiance = shadows.radiance;
+}
 
 Color shade_hit(const ShadingContext& context, const Ray& ray, const Hit& hit, int depth, RayCounts& counts,
                 const Vec3d& throughput, std::uint64_t path_seed) {
