@@ -431,7 +431,8 @@ TEST_CASE("lane atan2: within 1 ulp of glibc's atan2 for y >= 0") {
 }
 
 // SphericalTriangle::set_up_many's lanes give the constructor's bits (which takes the same path
-// with one triangle), for one to six triangles, degenerate ones included; and both builds agree.
+// with one triangle), for one to six triangles, degenerate ones included, seen from one point or
+// each from its own; and both builds agree.
 TEST_CASE("SphericalTriangle::set_up_many: the constructor's bits in every lane, in both builds") {
   namespace lanes = rt::light_sample_lanes;
   std::mt19937_64 random(2029);
@@ -453,13 +454,26 @@ TEST_CASE("SphericalTriangle::set_up_many: the constructor's bits in every lane,
       REQUIRE(same(one, many[i]));
       (one.valid() ? valid : invalid) += 1;
     }
+    // Each triangle from its own point (every other one from p, whose lanes must not change).
+    std::vector<Vec3d> points(count);
+    for (std::size_t i = 0; i < count; ++i) points[i] = i % 2 == 0 ? p : point();
+    if (round % 13 == 0) points[count - 1] = corners[count - 1][0];  // at a vertex
+    std::vector<rt::SphericalTriangle> each(count);
+    rt::SphericalTriangle::set_up_many(points, corners, each);
+    for (std::size_t i = 0; i < count; ++i) {
+      const rt::SphericalTriangle one(points[i], corners[i][0], corners[i][1], corners[i][2]);
+      REQUIRE(same(one, each[i]));
+      if (points[i] == p) REQUIRE(same(each[i], many[i]));
+    }
     // The two builds of the kernel on the same lanes.
     if (const lanes::Kernels* avx2 = lanes::avx2_kernels()) {
       lanes::SphericalInput in;
-      for (int axis = 0; axis < 3; ++axis) in.point[axis] = p[axis];
       for (std::size_t i = 0; i < 4; ++i) {
-        const std::array<Vec3d, 3>& t = corners[std::min(i, count - 1)];
-        for (auto [to, from] : {std::pair{&in.a, &t[0]}, std::pair{&in.b, &t[1]}, std::pair{&in.c, &t[2]}}) {
+        const std::size_t k = std::min(i, count - 1);
+        const std::array<Vec3d, 3>& t = corners[k];
+        const Vec3d& p_k = points[k];
+        for (auto [to, from] : {std::pair{&in.point, &p_k}, std::pair{&in.a, &t[0]}, std::pair{&in.b, &t[1]},
+                                std::pair{&in.c, &t[2]}}) {
           to->x.v[i] = from->x;
           to->y.v[i] = from->y;
           to->z.v[i] = from->z;

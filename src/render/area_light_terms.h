@@ -4,8 +4,10 @@
 // queries go.
 
 #include <cstdint>
+#include <span>
 
 #include "rt/render/ray_offset.h"
+#include "rt/render/sampling.h"
 #include "rt/render/shade.h"
 #include "shadow_records.h"
 
@@ -20,6 +22,9 @@ struct LitSurface {
   const Vec3d& specular;
   double shininess;
   const MaterialPlan& terms;
+  // Per emitter e < spherical.size(): its first triangles' spherical triangles seen from the point
+  // (EmitterSampler's `spherical`), or nullptr to set them up when needed.
+  std::span<const SphericalTriangle* const> spherical;
 };
 
 // The area lights' terms at a camera hit (depth 0) or deeper hit, recorded in `recorder` with their

@@ -169,7 +169,8 @@ bool emitter_below_horizon(const Emitter& emitter, const Vec3d& point, const Vec
 }
 
 EmitterSampler::EmitterSampler(const Emitter& emitter, const FlatScene& flat, const Scene& scene,
-                               const TextureSampler* textures, const Vec3d& point, LightSampling sampling)
+                               const TextureSampler* textures, const Vec3d& point, LightSampling sampling,
+                               const SphericalTriangle* spherical)
     : emitter_(emitter),
       flat_(flat),
       scene_(scene),
@@ -180,7 +181,10 @@ EmitterSampler::EmitterSampler(const Emitter& emitter, const FlatScene& flat, co
   // An emitter of at most kSlots triangles (draw's slots) has every view set up before its first
   // sample anyway: here, the set-up's long chain of divisions, square roots and atan2 overlaps
   // the caller's independent work before the first draw (the origins, the sample pattern).
-  if (emitter.triangles.size() <= std::size_t(light_sample_lanes::Input::kSlots)) view_cached_triangles();
+  if (spherical)
+    view_cached_triangles(spherical);
+  else if (emitter.triangles.size() <= std::size_t(light_sample_lanes::Input::kSlots))
+    view_cached_triangles();
 }
 
 bool EmitterSampler::needs_spherical(const EmitterTriangle& t) const {
@@ -211,8 +215,8 @@ EmitterSampler::View EmitterSampler::view_of(std::size_t triangle) const {
   return view_with(triangle, SphericalTriangle(point_, t.p0, t.p1, t.p2));
 }
 
-void EmitterSampler::view_cached_triangles() {
-  // The spherical triangles the cached views need, set up together in lanes.
+void EmitterSampler::view_cached_triangles(const SphericalTriangle* seen) {
+  // The spherical triangles the cached views need, set up together in lanes unless seen.
   std::array<std::array<Vec3d, 3>, kCachedTriangles> corners;
   std::array<std::size_t, kCachedTriangles> which;
   std::size_t count = 0;
@@ -223,6 +227,11 @@ void EmitterSampler::view_cached_triangles() {
     if (!needs_spherical(t)) continue;
     corners[count] = {t.p0, t.p1, t.p2};
     which[count++] = i;
+  }
+  if (seen) {
+    for (std::size_t k = 0; k < count; ++k) cache_[which[k]] = view_with(which[k], seen[which[k]]);
+    cached_ = true;
+    return;
   }
   constexpr SphericalTriangle::Unset unset;
   std::array<SphericalTriangle, kCachedTriangles> spherical{SphericalTriangle(unset), SphericalTriangle(unset),

@@ -87,6 +87,10 @@ BatchShader::BatchShader(const ShadingContext& context)
     plain.emission = Vec3d(material.emission);
     enabled_ = enabled_ || plain.batched;
   }
+  if (plan.area_lights && plan.options.light_sampling != LightSampling::area)
+    for (std::size_t e = 0; e < std::min(kViewedEmitters, plan.area_lights->emitters.size()); ++e)
+      if (plan.emitters[e].contributes && plan.area_lights->emitters[e].triangles.size() <= 4)
+        small_emitters_.push_back(e);
   const std::vector<std::uint32_t>& ids = context.flat.material_ids;
   for (std::size_t t = 0; t < ids.size() && run_first_.size() <= kMaxRuns; ++t)
     if (t == 0 || ids[t] != ids[t - 1]) {
@@ -116,6 +120,33 @@ void BatchShader::compute_lanes(Lanes& lanes, const std::array<Ray, kLanes>& ray
   lanes.lights.resize(context_.scene.lights.size());
   for (std::size_t j = 0; j < context_.scene.lights.size(); ++j)
     if (context_.plan.lights[j].contributes) compute_light(lanes, j);
+  if (!small_emitters_.empty()) compute_emitter_views(lanes);
+}
+
+void BatchShader::compute_emitter_views(Lanes& lanes) const {
+  const EffectsPlan& plan = context_.plan;
+  lanes.emitter_views.resize(small_emitters_.size());
+  std::array<Vec3d, 4 * kLanes> points;
+  std::array<std::array<Vec3d, 3>, 4 * kLanes> corners;
+  for (std::size_t v = 0; v < small_emitters_.size(); ++v) {
+    const Emitter& emitter = plan.area_lights->emitters[small_emitters_[v]];
+    Lanes::EmitterViews& views = lanes.emitter_views[v];
+    int n = 0;
+    for (int i = 0; i < lanes.count; ++i) {
+      const Vec3d point = lane(lanes.point, i);
+      const MaterialPlan& terms = plan.materials[lanes.material[std::size_t(i)]];
+      const bool drawn = !plan.options.prune || ((terms.diffuse || terms.specular) && in_front_of_emitter(emitter, point) &&
+                                                 !emitter_below_horizon(emitter, point, lane(lanes.normal, i)));
+      views.first[std::size_t(i)] = static_cast<std::int16_t>(drawn ? n : -1);
+      if (!drawn) continue;
+      for (const EmitterTriangle& t : emitter.triangles) {
+        points[std::size_t(n)] = point;
+        corners[std::size_t(n++)] = {t.p0, t.p1, t.p2};
+      }
+    }
+    SphericalTriangle::set_up_many(std::span(points).first(std::size_t(n)), std::span(corners).first(std::size_t(n)),
+                                   views.spherical);
+  }
 }
 
 void BatchShader::prepare(std::span<const Ray> rays, std::span<const Hit> hits, std::span<const bool> unbatched,
@@ -253,8 +284,14 @@ void BatchShader::add_area_lights(const Lanes& lanes, int i, int depth, std::uin
   // is x) and its to_eye the negated unit direction.
   const SurfacePoint surface{lane(lanes.point, i), lane(lanes.geometric_normal, i), lanes.error_bound.v[i]};
   const Vec3d normal = lane(lanes.normal, i), to_eye = -lane(lanes.direction, i);
+  std::array<const SphericalTriangle*, kViewedEmitters> spherical{};
+  for (std::size_t v = 0; v < small_emitters_.size(); ++v) {
+    const Lanes::EmitterViews& views = lanes.emitter_views[v];
+    if (views.first[std::size_t(i)] >= 0) spherical[small_emitters_[v]] = &views.spherical[std::size_t(views.first[std::size_t(i)])];
+  }
+  const std::size_t emitters = context_.plan.area_lights->emitters.size();
   const LitSurface lit{surface, normal, to_eye, plain.diffuse, plain.specular, plain.shininess,
-                       context_.plan.materials[material]};
+                       context_.plan.materials[material], std::span(spherical).first(std::min(kViewedEmitters, emitters))};
   if constexpr (std::is_same_v<Sink, ShadowRecorder>)
     record_area_light_terms(context_, lit, depth, path_seed, counts, sink);
   else

@@ -11,6 +11,7 @@
 #include <span>
 #include <vector>
 
+#include "rt/render/sampling.h"
 #include "rt/render/shade.h"
 
 namespace rt {
@@ -82,6 +83,15 @@ class BatchShader {
       LaneArray<kLanes> shadow_distance;     // shadow_ray_tfar (or +inf), before rounding to float32
     };
     std::vector<Light> lights;  // parallel to Scene::lights
+    // The small area lights' spherical triangles (EmitterSampler's `spherical`), set up for all
+    // lanes together so that several points share the SIMD lanes: [v] for emitter
+    // small_emitters_[v], lane i's triangles at spherical[first[i]...] where first[i] >= 0 (the
+    // lanes that draw samples of it).
+    struct EmitterViews {
+      std::array<SphericalTriangle, 4 * kLanes> spherical;
+      std::array<std::int16_t, kLanes> first{};
+    };
+    std::vector<EmitterViews> emitter_views;
   };
 
   // A reflection ray of depth >= 1 and what becomes of it.
@@ -156,6 +166,9 @@ class BatchShader {
   void compute_surfaces(Lanes& lanes, const std::array<Ray, kLanes>& rays, const std::array<Hit, kLanes>& hits,
                         int depth) const;
   void compute_light(Lanes& lanes, std::size_t light) const;
+  // lanes.emitter_views: for each of small_emitters_, the spherical triangles of the lanes that
+  // will draw its samples (shade.cpp's add_area_light_terms: the emitter-level rules pass).
+  void compute_emitter_views(Lanes& lanes) const;
   // The light terms of lane i at `depth` through `sink` (lit / query, as shade_surface's Shadows),
   // the point lights' and then the area lights' (samples drawn from `path_seed`), then its
   // reflection ray, if any, appended to `next` (parent `parent`); returns its index or -1.
@@ -184,6 +197,10 @@ class BatchShader {
   // both are empty.
   static constexpr std::size_t kMaxRuns = 8;
   std::vector<std::uint32_t> run_first_, run_material_;
+  // The area lights whose views the lanes set up together: among the first kViewedEmitters,
+  // those of at most four triangles that contribute, where triangles may be sampled by solid angle.
+  static constexpr std::size_t kViewedEmitters = 4;
+  std::vector<std::size_t> small_emitters_;
 };
 
 }  // namespace rt

@@ -240,8 +240,8 @@ void spherical(const SphericalInput& in, SphericalOutput& out) {
   const auto length = [](const Xyz& v) { return lm::sqrt(lm::dot(v, v)); };
   const auto divide = [](const Xyz& v, const D4& s) { return Xyz{v.x / s, v.y / s, v.z / s}; };
   const auto negate = [](const Xyz& v) { return Xyz{-v.x, -v.y, -v.z}; };
-  const Xyz point{lm::broadcast(in.point[0]), lm::broadcast(in.point[1]), lm::broadcast(in.point[2])};
-  Xyz a, b, c;
+  Xyz point, a, b, c;
+  lm::load(point, in.point, 0);
   lm::load(a, in.a, 0);
   lm::load(b, in.b, 0);
   lm::load(c, in.c, 0);

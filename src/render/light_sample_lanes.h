@@ -73,14 +73,14 @@ struct Chunk {
   double b0[kLanes];  // the barycentric of p0 (1 - b1 - b2, or sample_triangle_uniform's)
 };
 
-// SphericalTriangle's set-up (sampling.cpp) for four triangles (a, b, c) seen from one point, one
-// per lane: the unit directions A and B, C's part orthogonal to A (unit), the angle at A (radians)
-// with its cosine and sine, the cosine of side AB and the area (steradians). A lane whose triangle
-// has none (a vertex at the point, the point on a side's line, no positive area) is all zeros.
+// SphericalTriangle's set-up (sampling.cpp) for four triangles (a, b, c), each seen from its own
+// point, one per lane: the unit directions A and B, C's part orthogonal to A (unit), the angle at A
+// (radians) with its cosine and sine, the cosine of side AB and the area (steradians). A lane whose
+// triangle has none (a vertex at the point, the point on a side's line, no positive area) is all
+// zeros. Each lane's results depend on its own inputs only.
 struct SphericalInput {
   SphericalInput() {}
-  double point[3];
-  Vec3Lanes<4> a, b, c;
+  Vec3Lanes<4> point, a, b, c;
 };
 struct SphericalOutput {
   SphericalOutput() {}

@@ -185,16 +185,29 @@ SphericalTriangle::SphericalTriangle(const Vec3d& p, const Vec3d& a, const Vec3d
 // the triangle invalid (all zeros). Arithmetic in light_sample_lanes.cpp.
 void SphericalTriangle::set_up_many(const Vec3d& p, std::span<const std::array<Vec3d, 3>> corners,
                                     std::span<SphericalTriangle> out) {
+  set_up_lanes(&p, 0, corners, out);
+}
+
+void SphericalTriangle::set_up_many(std::span<const Vec3d> points, std::span<const std::array<Vec3d, 3>> corners,
+                                    std::span<SphericalTriangle> out) {
+  assert(points.size() == corners.size());
+  set_up_lanes(points.data(), 1, corners, out);
+}
+
+void SphericalTriangle::set_up_lanes(const Vec3d* points, std::size_t point_stride,
+                                     std::span<const std::array<Vec3d, 3>> corners, std::span<SphericalTriangle> out) {
   namespace lanes = light_sample_lanes;
   static const lanes::Kernels& kernels = lanes::best_kernels();
   assert(out.size() >= corners.size());
   lanes::SphericalInput in;
-  for (int axis = 0; axis < 3; ++axis) in.point[axis] = p[axis];
   for (std::size_t first = 0; first < corners.size(); first += 4) {
     const std::size_t count = std::min<std::size_t>(4, corners.size() - first);
     for (std::size_t i = 0; i < 4; ++i) {
-      const std::array<Vec3d, 3>& t = corners[first + std::min(i, count - 1)];  // unused lanes repeat the last
-      for (auto [to, from] : {std::pair{&in.a, &t[0]}, std::pair{&in.b, &t[1]}, std::pair{&in.c, &t[2]}}) {
+      const std::size_t k = first + std::min(i, count - 1);  // unused lanes repeat the last
+      const std::array<Vec3d, 3>& t = corners[k];
+      const Vec3d& p = points[k * point_stride];
+      for (auto [to, from] : {std::pair{&in.point, &p}, std::pair{&in.a, &t[0]}, std::pair{&in.b, &t[1]},
+                              std::pair{&in.c, &t[2]}}) {
         to->x.v[i] = from->x;
         to->y.v[i] = from->y;
         to->z.v[i] = from->z;

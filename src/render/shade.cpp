@@ -258,7 +258,8 @@ template <class Shadows>
       continue;
     }
     const auto pattern = static_cast<std::uint32_t>(mix64(path_seed ^ mix64((std::uint64_t(depth) << 32) + e)));
-    EmitterSampler sampler(emitter, context.flat, context.scene, context.textures, point, plan.options.light_sampling);
+    EmitterSampler sampler(emitter, context.flat, context.scene, context.textures, point, plan.options.light_sampling,
+                           e < lit.spherical.size() ? lit.spherical[e] : nullptr);
     if (!origins_set) {
       kernels.set_origins(shading);
       origins_set = true;
@@ -568,7 +569,7 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
   }
 
   if (plan.area_lights)
-    add_area_light_terms(context, LitSurface{surface, normal, to_eye, diffuse, specular, shininess, terms},
+    add_area_light_terms(context, LitSurface{surface, normal, to_eye, diffuse, specular, shininess, terms, {}},
                          depth, path_seed, counts, shadows);
 
   if (depth < context.scene.settings.max_depth && glass.share > 0.0) {

@@ -114,11 +114,13 @@ struct LightSample {
 // says. What depends only on (point, triangle), the spherical triangle and the choice of strategy,
 // is set up once for each of the first kCachedTriangles triangles and reused by all the samples
 // of the hit. With `textures` and an emission texture, samples carry their texcoord (nullptr:
-// the texture is ignored). Deterministic.
+// the texture is ignored). `spherical`, where not null, holds SphericalTriangle(point, p0, p1, p2)
+// of the first min(kCachedTriangles, size) triangles, set up by the caller (for many points at
+// once: SphericalTriangle::set_up_many), so that none is set up here. Deterministic.
 class EmitterSampler {
  public:
   EmitterSampler(const Emitter& emitter, const FlatScene& flat, const Scene& scene, const TextureSampler* textures,
-                 const Vec3d& point, LightSampling sampling);
+                 const Vec3d& point, LightSampling sampling, const SphericalTriangle* spherical = nullptr);
   LightSample sample(Vec2d u);
   // sample(u[k]) into out[k] for every k (out.size() >= u.size()), bit for bit where valid (of an
   // invalid sample only `valid` is set), with the warp's arithmetic done several samples at a time
@@ -150,7 +152,8 @@ class EmitterSampler {
   bool needs_spherical(const EmitterTriangle& triangle) const;
   View view_with(std::size_t triangle, const SphericalTriangle& spherical) const;
   View view_of(std::size_t triangle) const;
-  void view_cached_triangles();
+  // The cached views, from the caller's spherical triangles (`seen`, see the constructor) or set up here.
+  void view_cached_triangles(const SphericalTriangle* seen = nullptr);
   // The triangle that u.y picks through the cdf, its probability and u.y rescaled to its interval.
   struct Choice {
     std::size_t triangle = 0;

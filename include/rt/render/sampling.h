@@ -61,6 +61,10 @@ class SphericalTriangle {
   // corners[i][0], corners[i][1], corners[i][2]) bit for bit (the constructor takes this path).
   static void set_up_many(const Vec3d& p, std::span<const std::array<Vec3d, 3>> corners,
                           std::span<SphericalTriangle> out);
+  // The same with triangle i seen from points[i] (points.size() == corners.size()): the set-ups of
+  // several shading points share the lanes.
+  static void set_up_many(std::span<const Vec3d> points, std::span<const std::array<Vec3d, 3>> corners,
+                          std::span<SphericalTriangle> out);
 
   bool valid() const { return area_ > 0.0; }
   // Its area on the unit sphere (steradians, by Girard's theorem): the pdf of a direction is 1 / area.
@@ -80,6 +84,10 @@ class SphericalTriangle {
   double cos_c() const { return cos_c_; }
 
  private:
+  // set_up_many's lanes; triangle i is seen from points[i * point_stride].
+  static void set_up_lanes(const Vec3d* points, std::size_t point_stride, std::span<const std::array<Vec3d, 3>> corners,
+                           std::span<SphericalTriangle> out);
+
   Vec3d A_, B_;
   Vec3d C_perp_;  // unit, C's component orthogonal to A
   double alpha_, cos_alpha_, sin_alpha_, cos_c_;  // angle at A; cos of side AB
