@@ -225,7 +225,7 @@ void EmitterSampler::view_cached_triangles(const SphericalTriangle* seen) {
     const EmitterTriangle& t = emitter_.triangles[i];
     cache_[i].by_solid_angle = false;  // its spherical triangle is not read
     if (!needs_spherical(t)) continue;
-    corners[count] = {t.p0, t.p1, t.p2};
+    if (!seen) corners[count] = {t.p0, t.p1, t.p2};
     which[count++] = i;
   }
   if (seen) {

@@ -89,7 +89,7 @@ BatchShader::BatchShader(const ShadingContext& context)
   }
   if (plan.area_lights && plan.options.light_sampling != LightSampling::area)
     for (std::size_t e = 0; e < std::min(kViewedEmitters, plan.area_lights->emitters.size()); ++e)
-      if (plan.emitters[e].contributes && plan.area_lights->emitters[e].triangles.size() <= 4)
+      if (plan.emitters[e].contributes && plan.area_lights->emitters[e].triangles.size() <= kViewedTriangles)
         small_emitters_.push_back(e);
   const std::vector<std::uint32_t>& ids = context.flat.material_ids;
   for (std::size_t t = 0; t < ids.size() && run_first_.size() <= kMaxRuns; ++t)
@@ -126,8 +126,8 @@ void BatchShader::compute_lanes(Lanes& lanes, const std::array<Ray, kLanes>& ray
 void BatchShader::compute_emitter_views(Lanes& lanes) const {
   const EffectsPlan& plan = context_.plan;
   lanes.emitter_views.resize(small_emitters_.size());
-  std::array<Vec3d, 4 * kLanes> points;
-  std::array<std::array<Vec3d, 3>, 4 * kLanes> corners;
+  std::array<Vec3d, kViewedTriangles * kLanes> points;
+  std::array<std::array<Vec3d, 3>, kViewedTriangles * kLanes> corners;
   for (std::size_t v = 0; v < small_emitters_.size(); ++v) {
     const Emitter& emitter = plan.area_lights->emitters[small_emitters_[v]];
     Lanes::EmitterViews& views = lanes.emitter_views[v];
@@ -135,8 +135,10 @@ void BatchShader::compute_emitter_views(Lanes& lanes) const {
     for (int i = 0; i < lanes.count; ++i) {
       const Vec3d point = lane(lanes.point, i);
       const MaterialPlan& terms = plan.materials[lanes.material[std::size_t(i)]];
-      const bool drawn = !plan.options.prune || ((terms.diffuse || terms.specular) && in_front_of_emitter(emitter, point) &&
-                                                 !emitter_below_horizon(emitter, point, lane(lanes.normal, i)));
+      // add_area_light_terms' emitter-level rules, which spare a pruned render the samples.
+      const bool drawn = !plan.options.prune ||
+                         ((terms.diffuse || terms.specular) && in_front_of_emitter(emitter, point) &&
+                          !emitter_below_horizon(emitter, point, lane(lanes.normal, i)));
       views.first[std::size_t(i)] = static_cast<std::int16_t>(drawn ? n : -1);
       if (!drawn) continue;
       for (const EmitterTriangle& t : emitter.triangles) {
@@ -287,11 +289,12 @@ void BatchShader::add_area_lights(const Lanes& lanes, int i, int depth, std::uin
   std::array<const SphericalTriangle*, kViewedEmitters> spherical{};
   for (std::size_t v = 0; v < small_emitters_.size(); ++v) {
     const Lanes::EmitterViews& views = lanes.emitter_views[v];
-    if (views.first[std::size_t(i)] >= 0) spherical[small_emitters_[v]] = &views.spherical[std::size_t(views.first[std::size_t(i)])];
+    const std::int16_t first = views.first[std::size_t(i)];
+    if (first >= 0) spherical[small_emitters_[v]] = &views.spherical[std::size_t(first)];
   }
-  const std::size_t emitters = context_.plan.area_lights->emitters.size();
+  const std::size_t viewed = std::min(kViewedEmitters, context_.plan.area_lights->emitters.size());
   const LitSurface lit{surface, normal, to_eye, plain.diffuse, plain.specular, plain.shininess,
-                       context_.plan.materials[material], std::span(spherical).first(std::min(kViewedEmitters, emitters))};
+                       context_.plan.materials[material], std::span(spherical).first(viewed)};
   if constexpr (std::is_same_v<Sink, ShadowRecorder>)
     record_area_light_terms(context_, lit, depth, path_seed, counts, sink);
   else

@@ -11,6 +11,7 @@
 #include <span>
 #include <vector>
 
+#include "rt/render/area_lights.h"
 #include "rt/render/sampling.h"
 #include "rt/render/shade.h"
 
@@ -61,6 +62,8 @@ struct Vec3fLanes {
 class BatchShader {
  public:
   static constexpr int kLanes = 16;  // a camera packet of render_image (4 x 4 pixels)
+  // The largest area light whose views the lanes set up (EmitterSampler's cache holds as many).
+  static constexpr std::size_t kViewedTriangles = EmitterSampler::kCachedTriangles;
 
   // The shading arithmetic of up to kLanes hits; one per render thread, reused.
   struct Lanes {
@@ -88,7 +91,7 @@ class BatchShader {
     // small_emitters_[v], lane i's triangles at spherical[first[i]...] where first[i] >= 0 (the
     // lanes that draw samples of it).
     struct EmitterViews {
-      std::array<SphericalTriangle, 4 * kLanes> spherical;
+      std::array<SphericalTriangle, kViewedTriangles * kLanes> spherical;
       std::array<std::int16_t, kLanes> first{};
     };
     std::vector<EmitterViews> emitter_views;
@@ -197,8 +200,8 @@ class BatchShader {
   // both are empty.
   static constexpr std::size_t kMaxRuns = 8;
   std::vector<std::uint32_t> run_first_, run_material_;
-  // The area lights whose views the lanes set up together: among the first kViewedEmitters,
-  // those of at most four triangles that contribute, where triangles may be sampled by solid angle.
+  // The area lights whose views the lanes set up together: among the first kViewedEmitters, those
+  // of at most kViewedTriangles triangles that contribute, unless every sample is drawn by area.
   static constexpr std::size_t kViewedEmitters = 4;
   std::vector<std::size_t> small_emitters_;
 };

@@ -85,8 +85,8 @@ class SphericalTriangle {
 
  private:
   // set_up_many's lanes; triangle i is seen from points[i * point_stride].
-  static void set_up_lanes(const Vec3d* points, std::size_t point_stride, std::span<const std::array<Vec3d, 3>> corners,
-                           std::span<SphericalTriangle> out);
+  static void set_up_lanes(const Vec3d* points, std::size_t point_stride,
+                           std::span<const std::array<Vec3d, 3>> corners, std::span<SphericalTriangle> out);
 
   Vec3d A_, B_;
   Vec3d C_perp_;  // unit, C's component orthogonal to A
