@@ -66,6 +66,12 @@ template <int N>
 [[gnu::always_inline]] static inline Wide<N> splat(double x) {
   return lm::Splat<Wide<N>>::value(x);
 }
+template <int N>
+[[gnu::always_inline]] static inline bool any(const WideMask<N>& m) {
+  bool set = false;
+  for (int i = 0; i < N; ++i) set = set || lm::any(m.g[i]);
+  return set;
+}
 
 // Where lanes g .. g + 4N - 1 read their triangle's inputs (Input's per-triangle fields): their
 // own lanes, or the entries of their slots.
@@ -147,24 +153,31 @@ template <int N, template <int> class Fetch>
   const Vec3W<N> point{splat<N>(in.point[0]), splat<N>(in.point[1]), splat<N>(in.point[2])};
   const Vec3W<N> p0 = fetch(in.p0), p1 = fetch(in.p1), p2 = fetch(in.p2);
   const WideMask<N> by_solid_angle = mask_at<N>(in.by_solid_angle, g);
+  const WideMask<N> all = zero == zero;
 
-  // barycentrics_along(point, w, p0, p1, p2) for the warped direction w.
-  const Vec3W<N> w = arvo_direction<N>(in, g, fetch);
-  const Vec3W<N> e1 = minus(p1, p0), e2 = minus(p2, p0);
-  const Vec3W<N> pv = cross(w, e2);
-  const Wide<N> determinant = dot(e1, pv);
-  const Vec3W<N> tv = minus(point, p0);
-  Wide<N> b1 = lm::clamp(dot(tv, pv) / determinant, zero, one);
-  Wide<N> b2 = lm::clamp(dot(w, cross(tv, e1)) / determinant, zero, one);
-  const Wide<N> sum = b1 + b2;
-  const WideMask<N> over = sum > one;
-  b1 = lm::select(over, b1 / sum, b1);
-  b2 = lm::select(over, b2 / sum, b2);
-
-  // Where sampled by area, sample_triangle_uniform's barycentrics instead.
-  b1 = lm::select(by_solid_angle, b1, at<N>(in.b1, g));
-  b2 = lm::select(by_solid_angle, b2, at<N>(in.b2, g));
-  WideMask<N> valid = ~by_solid_angle | (determinant != zero);
+  // Where sampled by area, sample_triangle_uniform's barycentrics; elsewhere barycentrics_along(
+  // point, w, p0, p1, p2) for the warped direction w. What no lane of the groups reads is not
+  // computed: the divider is this kernel's bottleneck, and skipping changes no lane's bits.
+  Wide<N> b1 = at<N>(in.b1, g), b2 = at<N>(in.b2, g);
+  WideMask<N> valid = all;
+  if (any(by_solid_angle)) {
+    const Vec3W<N> w = arvo_direction<N>(in, g, fetch);
+    const Vec3W<N> e1 = minus(p1, p0), e2 = minus(p2, p0);
+    const Vec3W<N> pv = cross(w, e2);
+    const Wide<N> determinant = dot(e1, pv);
+    const Vec3W<N> tv = minus(point, p0);
+    Wide<N> along1 = lm::clamp(dot(tv, pv) / determinant, zero, one);
+    Wide<N> along2 = lm::clamp(dot(w, cross(tv, e1)) / determinant, zero, one);
+    const Wide<N> sum = along1 + along2;
+    const WideMask<N> over = sum > one;
+    if (any(over)) {  // rare: rounding put the point past the far side
+      along1 = lm::select(over, along1 / sum, along1);
+      along2 = lm::select(over, along2 / sum, along2);
+    }
+    b1 = lm::select(by_solid_angle, along1, b1);
+    b2 = lm::select(by_solid_angle, along2, b2);
+    valid = ~by_solid_angle | (determinant != zero);
+  }
 
   put(out.b1, g, b1);
   put(out.b2, g, b2);
@@ -193,7 +206,9 @@ template <int N, template <int> class Fetch>
   put(out.normal, g, normal);
   const Wide<N> cos_emitter = -dot(normal, direction);
   const WideMask<N> front = cos_emitter > zero;
-  const Wide<N> by_area = (fetch(in.area) * cos_emitter) / ((fetch(in.probability) * distance) * distance);
+  const Wide<N> by_area = any(~by_solid_angle)
+                             ? (fetch(in.area) * cos_emitter) / ((fetch(in.probability) * distance) * distance)
+                             : zero;
   const Vec3W<N> solid = fetch(in.solid_radiance);
   const auto radiance = [&](const Wide<N>& solid_radiance, double emission) {
     return lm::select(front, lm::select(by_solid_angle, solid_radiance, splat<N>(emission) * by_area), zero);
