@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <span>
 
+#include "rt/render/area_lights.h"
 #include "rt/render/ray_offset.h"
 #include "rt/render/sampling.h"
 #include "rt/render/shade.h"
@@ -26,6 +27,12 @@ struct LitSurface {
   // (EmitterSampler's `spherical`), or nullptr to set them up when needed.
   std::span<const SphericalTriangle* const> spherical;
 };
+
+// The emitter-level rule that makes every term of `emitter` zero at a point with shading normal
+// `normal` (world space) of a material with `terms`: unlit_material, emitter_behind or
+// emitter_below_horizon, checked in that order; sample_zero when none applies. Pruned, no sample
+// of the emitter is drawn where one applies.
+SkipRule emitter_zero_rule(const Emitter& emitter, const Vec3d& point, const Vec3d& normal, const MaterialPlan& terms);
 
 // The area lights' terms at a camera hit (depth 0) or deeper hit, recorded in `recorder` with their
 // shadow rays, as shade_camera_hit records them.

@@ -134,11 +134,9 @@ void BatchShader::compute_emitter_views(Lanes& lanes) const {
     int n = 0;
     for (int i = 0; i < lanes.count; ++i) {
       const Vec3d point = lane(lanes.point, i);
-      const MaterialPlan& terms = plan.materials[lanes.material[std::size_t(i)]];
-      // add_area_light_terms' emitter-level rules, which spare a pruned render the samples.
       const bool drawn = !plan.options.prune ||
-                         ((terms.diffuse || terms.specular) && in_front_of_emitter(emitter, point) &&
-                          !emitter_below_horizon(emitter, point, lane(lanes.normal, i)));
+                         emitter_zero_rule(emitter, point, lane(lanes.normal, i),
+                                           plan.materials[lanes.material[std::size_t(i)]]) == SkipRule::sample_zero;
       views.first[std::size_t(i)] = static_cast<std::int16_t>(drawn ? n : -1);
       if (!drawn) continue;
       for (const EmitterTriangle& t : emitter.triangles) {

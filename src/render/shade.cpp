@@ -245,13 +245,7 @@ template <class Shadows>
       skip(SkipRule::emitter_off, e, samples);
       continue;
     }
-    SkipRule zero_rule = SkipRule::sample_zero;  // the emitter-level rule that zeroes every term, if any
-    if (!lit.terms.diffuse && !lit.terms.specular)
-      zero_rule = SkipRule::unlit_material;
-    else if (!in_front_of_emitter(emitter, point))
-      zero_rule = SkipRule::emitter_behind;
-    else if (emitter_below_horizon(emitter, point, lit.normal))
-      zero_rule = SkipRule::emitter_below_horizon;
+    const SkipRule zero_rule = emitter_zero_rule(emitter, point, lit.normal, lit.terms);
     const bool all_zero = zero_rule != SkipRule::sample_zero;
     if (prune && all_zero) {
       skip(zero_rule, e, samples);
@@ -607,6 +601,13 @@ void shade_surface(const ShadingContext& context, const Ray& ray, const Hit& hit
 }
 
 }  // namespace
+
+SkipRule emitter_zero_rule(const Emitter& emitter, const Vec3d& point, const Vec3d& normal, const MaterialPlan& terms) {
+  if (!terms.diffuse && !terms.specular) return SkipRule::unlit_material;
+  if (!in_front_of_emitter(emitter, point)) return SkipRule::emitter_behind;
+  if (emitter_below_horizon(emitter, point, normal)) return SkipRule::emitter_below_horizon;
+  return SkipRule::sample_zero;
+}
 
 void record_area_light_terms(const ShadingContext& context, const LitSurface& lit, int depth, std::uint64_t path_seed,
                              RayCounts& counts, ShadowRecorder& recorder) {
