@@ -437,3 +437,55 @@ TEST_CASE("batch shading lanes: the AVX2 build computes the baseline build's bit
     CHECK(same_vectors(a.lights[0].term, b.lights[0].term));
   }
 }
+
+// The gather of a hit's vertices, normals, direction and barycentrics (Kernels::gather): both
+// builds give the widened float32 values themselves, lane by lane, lanes past the count copying
+// lane 0, also for triangles that use the arrays' last vertex (read without the 16-byte load).
+TEST_CASE("batch shading lanes: the gather of both builds widens each lane's vertices exactly", "[batch]") {
+  namespace bl = rt::batch_lanes;
+  constexpr int kLanes = rt::BatchShader::kLanes;
+  std::mt19937 random(99);
+  const auto uniform = [&](float lo, float hi) { return std::uniform_real_distribution<float>(lo, hi)(random); };
+  const std::uint32_t vertex_count = 7;
+  std::vector<rt::Vec3f> positions(vertex_count), normals(vertex_count);
+  for (std::uint32_t v = 0; v < vertex_count; ++v) {
+    positions[v] = rt::Vec3f(uniform(-1e3f, 1e3f), uniform(-1, 1), uniform(-1e-3f, 1e-3f));
+    normals[v] = rt::Vec3f(uniform(-1, 1), uniform(-1, 1), uniform(-1, 1));
+  }
+  const bl::VertexArrays vertices{positions.data(), normals.data(), vertex_count};
+  std::vector<const bl::Kernels*> builds{&bl::baseline_kernels()};
+  if (bl::avx2_kernels()) builds.push_back(bl::avx2_kernels());
+  int last_vertex_lanes = 0;
+  for (int round = 0; round < 50; ++round) {
+    const int count = 1 + round % kLanes;
+    std::array<rt::Vec3u, kLanes> triangles{};
+    std::array<rt::Ray, kLanes> rays;
+    std::array<rt::Hit, kLanes> hits;
+    for (int i = 0; i < count; ++i) {
+      triangles[std::size_t(i)] = rt::Vec3u(random() % vertex_count, random() % vertex_count, random() % vertex_count);
+      rays[std::size_t(i)].direction = rt::Vec3f(uniform(-1, 1), uniform(-1, 1), uniform(-1, 1));
+      hits[std::size_t(i)].u = uniform(0, 0.5f);
+      hits[std::size_t(i)].v = uniform(0, 0.5f);
+    }
+    for (const bl::Kernels* build : builds) {
+      bl::Gathered in;
+      build->gather(vertices, triangles.data(), rays.data(), hits.data(), count, in);
+      for (int i = 0; i < (count + 3) / 4 * 4; ++i) {
+        const int from = i < count ? i : 0;
+        const rt::Vec3u tri = triangles[std::size_t(from)];
+        const auto lane3 = [i](const rt::Vec3Lanes<kLanes>& v) { return rt::Vec3d(v.x.v[i], v.y.v[i], v.z.v[i]); };
+        CHECK(lane3(in.p0) == rt::Vec3d(positions[tri.x]));
+        CHECK(lane3(in.p1) == rt::Vec3d(positions[tri.y]));
+        CHECK(lane3(in.p2) == rt::Vec3d(positions[tri.z]));
+        CHECK(lane3(in.n0) == rt::Vec3d(normals[tri.x]));
+        CHECK(lane3(in.n1) == rt::Vec3d(normals[tri.y]));
+        CHECK(lane3(in.n2) == rt::Vec3d(normals[tri.z]));
+        CHECK(lane3(in.d) == rt::Vec3d(rays[std::size_t(from)].direction));
+        CHECK(in.b1.v[i] == double(hits[std::size_t(from)].u));
+        CHECK(in.b2.v[i] == double(hits[std::size_t(from)].v));
+        last_vertex_lanes += tri.x == vertex_count - 1 || tri.y == vertex_count - 1 || tri.z == vertex_count - 1;
+      }
+    }
+  }
+  CHECK(last_vertex_lanes > 50);
+}

@@ -5,6 +5,7 @@
 #include "batch_lanes.h"
 
 #include <cmath>
+#include <cstddef>
 
 #include "lane_math.h"
 #include "rt/render/ray_offset.h"
@@ -54,6 +55,49 @@ using ray_offset_detail::kScaledRoundoff;
   lm::store(origin.x + g, lm::round_away(p.x + bound * sx, sx));
   lm::store(origin.y + g, lm::round_away(p.y + bound * sy, sy));
   lm::store(origin.z + g, lm::round_away(p.z + bound * sz, sz));
+}
+
+// The three floats at p (the fourth lane unspecified): one 16-byte load where a float of the
+// same array follows them, else three.
+[[gnu::always_inline]] static inline F4 load3(const Vec3f* array, std::uint32_t index, std::size_t count) {
+  const float* p = &array[index].x;
+  return index + 1 < count ? _mm_loadu_ps(p) : _mm_setr_ps(p[0], p[1], p[2], 0.0f);
+}
+
+// Rows r[0..3] (lanes' x, y, z, -) transposed into axes, widened and stored at lanes g..g+3.
+[[gnu::always_inline]] static inline void put_transposed(F4 (&r)[4], int g, Vec3Lanes<kLanes>& to) {
+  _MM_TRANSPOSE4_PS(r[0], r[1], r[2], r[3]);
+  lm::store(to.x.v + g, lm::to_double(r[0]));
+  lm::store(to.y.v + g, lm::to_double(r[1]));
+  lm::store(to.z.v + g, lm::to_double(r[2]));
+}
+
+void gather(const VertexArrays& vertices, const Vec3u* triangles, const Ray* rays, const Hit* hits, int count,
+            Gathered& in) {
+  for (int g = 0; g < count; g += 4) {
+    int lane[4];
+    for (int l = 0; l < 4; ++l) lane[l] = g + l < count ? g + l : 0;
+    for (int corner = 0; corner < 3; ++corner) {
+      F4 p[4], n[4];
+      for (int l = 0; l < 4; ++l) {
+        const std::uint32_t v = triangles[lane[l]][corner];
+        p[l] = load3(vertices.positions, v, vertices.count);
+        n[l] = load3(vertices.normals, v, vertices.count);
+      }
+      put_transposed(p, g, corner == 0 ? in.p0 : corner == 1 ? in.p1 : in.p2);
+      put_transposed(n, g, corner == 0 ? in.n0 : corner == 1 ? in.n1 : in.n2);
+    }
+    F4 d[4], h[4];
+    for (int l = 0; l < 4; ++l) {
+      static_assert(sizeof(Ray) >= offsetof(Ray, direction) + 16 && sizeof(Hit) == 16);
+      d[l] = _mm_loadu_ps(&rays[lane[l]].direction.x);  // direction, then tnear
+      h[l] = _mm_loadu_ps(&hits[lane[l]].t);            // t, u, v, primitive
+    }
+    put_transposed(d, g, in.d);
+    _MM_TRANSPOSE4_PS(h[0], h[1], h[2], h[3]);
+    lm::store(in.b1.v + g, lm::to_double(h[1]));
+    lm::store(in.b2.v + g, lm::to_double(h[2]));
+  }
 }
 
 // make_surface_point, the shading normal (interpolated, unit, flipped towards the viewer on a
@@ -223,13 +267,13 @@ void terms(const Lanes& block, const Vec3Lanes<kLanes>& intensity, const LaneArr
 
 #ifdef RT_BATCH_LANES_AVX2
 const Kernels* avx2_kernels() {
-  static const Kernels kernels{avx2::surfaces, avx2::light, avx2::terms};
+  static const Kernels kernels{avx2::gather, avx2::surfaces, avx2::light, avx2::terms};
   __builtin_cpu_init();  // idempotent; needed when called before the constructors have run
   return __builtin_cpu_supports("avx2") ? &kernels : nullptr;
 }
 #else
 const Kernels& baseline_kernels() {
-  static const Kernels kernels{baseline::surfaces, baseline::light, baseline::terms};
+  static const Kernels kernels{baseline::gather, baseline::surfaces, baseline::light, baseline::terms};
   return kernels;
 }
 

@@ -22,13 +22,25 @@ struct Gathered {
   alignas(32) std::int64_t flip[kLanes];  // all ones: BackFace::flipped, else 0
 };
 
-// One build of the arithmetic. surfaces: make_surface_point, the shading normal (interpolated,
+// Where Kernels::gather reads the lanes' vertices: FlatScene's arrays (world space, float32).
+struct VertexArrays {
+  const Vec3f* positions = nullptr;
+  const Vec3f* normals = nullptr;
+  std::size_t count = 0;  // vertices in each
+};
+
+// One build of the arithmetic. gather: the vertices and vertex normals of triangles[i] (vertex
+// indices), the direction of rays[i] and the barycentrics of hits[i] into `in`, for `count` lanes,
+// lanes past it up to a multiple of 4 copying lane 0 (so that no uninitialised value enters the
+// arithmetic); four lanes at a time, by 16-byte loads and transposes. surfaces: make_surface_point, the shading normal (interpolated,
 // unit, flipped towards the viewer on a two-sided back face), the unit direction and the
 // reflection ray of block.count lanes. light: one light's direction, unshadowed intensity, n.l,
 // n.h, geometric cosine and shadow ray (shade_surface's, before the pow of the highlight). terms:
 // the light's term, intensity (ambient + diffuse n.l + specular pow(n.h, s)), the highlight zero
 // where it is skipped.
 struct Kernels {
+  void (*gather)(const VertexArrays& vertices, const Vec3u* triangles, const Ray* rays, const Hit* hits, int count,
+                 Gathered& in);
   void (*surfaces)(const Gathered& in, const OriginPolicy& policy, Lanes& block);
   void (*light)(const LightLanes& light, const OriginPolicy& policy, const Lanes& block, Lanes::Light& out,
                 Vec3Lanes<kLanes>& intensity, LaneArray<kLanes>& n_dot_l, LaneArray<kLanes>& n_dot_h);

@@ -174,6 +174,18 @@ void BatchShader::prefetch_triangles(std::span<const Hit> hits) const {
     }
 }
 
+void BatchShader::prefetch_vertices(std::span<const Hit> hits) const {
+  const FlatScene& flat = context_.flat;
+  for (const Hit& hit : hits)
+    if (hit.found() && !flat.is_sphere(hit.primitive)) {
+      const Vec3u tri = flat.triangles[hit.primitive];
+      for (const std::uint32_t v : {tri.x, tri.y, tri.z}) {
+        __builtin_prefetch(&flat.positions[v]);
+        __builtin_prefetch(&flat.normals[v]);
+      }
+    }
+}
+
 void BatchShader::start_block(Workspace& work) const {
   if (work.waves.size() < 2) work.waves.resize(2);
   work.waves[1].clear();
@@ -183,38 +195,23 @@ void BatchShader::compute_surfaces(Lanes& block, const std::array<Ray, kLanes>& 
                                    const std::array<Hit, kLanes>& hits, int depth) const {
   const FlatScene& flat = context_.flat;
   const int lanes = block.count;
-  Gathered in;
-  block.highlights = false;
-  bool reflecting = false;
   // Indices first, then every vertex line requested at once, then the vertices: the cache misses
   // of all lanes overlap.
-  std::array<Vec3u, kLanes> triangles;
+  std::array<Vec3u, kLanes> triangles{};  // zeros past the count: never read, but the compiler cannot tell
   for (int i = 0; i < lanes; ++i) triangles[std::size_t(i)] = flat.triangles[hits[std::size_t(i)].primitive];
   for (int i = 0; i < lanes; ++i)
     for (const std::uint32_t v : {triangles[std::size_t(i)].x, triangles[std::size_t(i)].y, triangles[std::size_t(i)].z}) {
       __builtin_prefetch(&flat.positions[v]);
       __builtin_prefetch(&flat.normals[v]);
     }
-  for (int i = 0; i < lanes; ++i) {
-    const Hit& hit = hits[std::size_t(i)];
-    const Vec3u tri = triangles[std::size_t(i)];
-    const auto put = [i](Vec3Lanes<kLanes>& to, const Vec3f& from) {
-      to.x.v[i] = from.x;
-      to.y.v[i] = from.y;
-      to.z.v[i] = from.z;
-    };
-    put(in.p0, flat.positions[tri.x]);
-    put(in.p1, flat.positions[tri.y]);
-    put(in.p2, flat.positions[tri.z]);
-    put(in.n0, flat.normals[tri.x]);
-    put(in.n1, flat.normals[tri.y]);
-    put(in.n2, flat.normals[tri.z]);
-    put(in.d, rays[std::size_t(i)].direction);
-    in.b1.v[i] = hit.u;
-    in.b2.v[i] = hit.v;
-    const std::uint32_t material = material_of_triangle(hit.primitive);
-    block.material[std::size_t(i)] = material;
-    const PlainMaterial& plain = materials_[material];
+  for (int i = 0; i < lanes; ++i) block.material[std::size_t(i)] = material_of_triangle(hits[std::size_t(i)].primitive);
+  Gathered in;
+  kernels_.gather(batch_lanes::VertexArrays{flat.positions.data(), flat.normals.data(), flat.positions.size()},
+                  triangles.data(), rays.data(), hits.data(), lanes, in);
+  // The materials' values at each lane; lanes past the count (up to the next multiple of 4) copy
+  // lane 0's. Most packets see one material: its values are then written to every lane at once.
+  const int padded = (lanes + 3) / 4 * 4;
+  const auto put_material = [&](int i, const PlainMaterial& plain) {
     in.flip[i] = plain.flip_back_face ? -1 : 0;
     block.ambient.x.v[i] = plain.ambient.x, block.ambient.y.v[i] = plain.ambient.y, block.ambient.z.v[i] = plain.ambient.z;
     block.diffuse.x.v[i] = plain.diffuse.x, block.diffuse.y.v[i] = plain.diffuse.y, block.diffuse.z.v[i] = plain.diffuse.z;
@@ -222,26 +219,27 @@ void BatchShader::compute_surfaces(Lanes& block, const std::array<Ray, kLanes>& 
     block.specular.z.v[i] = plain.specular.z;
     block.shininess.v[i] = plain.shininess;
     block.highlight[i] = plain.highlight ? -1 : 0;
-    block.highlights = block.highlights || plain.highlight;
-    reflecting = reflecting || (plain.reflects && plain.reflective != Vec3d(0.0));
+  };
+  const std::uint32_t first_material = block.material[0];
+  bool one_material = true;
+  for (int i = 1; i < lanes; ++i) one_material = one_material && block.material[std::size_t(i)] == first_material;
+  block.highlights = false;
+  bool reflecting = false;
+  if (one_material) {
+    const PlainMaterial& plain = materials_[first_material];
+    for (int i = 0; i < kLanes; ++i) put_material(i, plain);
+    block.highlights = plain.highlight;
+    reflecting = plain.reflects && plain.reflective != Vec3d(0.0);
+  } else {
+    for (int i = 0; i < padded; ++i) {
+      const PlainMaterial& plain = materials_[block.material[std::size_t(i < lanes ? i : 0)]];
+      put_material(i, plain);
+      block.highlights = block.highlights || plain.highlight;
+      reflecting = reflecting || (plain.reflects && plain.reflective != Vec3d(0.0));
+    }
   }
   // What shade_lane reads to make a reflection ray: computed unless no lane can make one.
   block.reflections = depth < context_.scene.settings.max_depth && (reflecting || !context_.plan.options.prune);
-  // Lanes past the count (up to the next multiple of 4) are computed and never read: give them a
-  // copy of lane 0, so that no uninitialised value enters the arithmetic.
-  for (int i = lanes; i % 4 != 0; ++i) {
-    const auto copy = [i](Vec3Lanes<kLanes>& v) {
-      v.x.v[i] = v.x.v[0];
-      v.y.v[i] = v.y.v[0];
-      v.z.v[i] = v.z.v[0];
-    };
-    for (Vec3Lanes<kLanes>* v : {&in.p0, &in.p1, &in.p2, &in.n0, &in.n1, &in.n2, &in.d, &block.ambient, &block.diffuse,
-                                 &block.specular})
-      copy(*v);
-    in.b1.v[i] = in.b1.v[0], in.b2.v[i] = in.b2.v[0], in.flip[i] = in.flip[0];
-    block.shininess.v[i] = block.shininess.v[0];
-    block.highlight[i] = block.highlight[0];
-  }
   kernels_.surfaces(in, origin_policy_, block);
 }
 
@@ -405,10 +403,16 @@ void BatchShader::shade_wave(Workspace& work, int depth, RayCounts& counts) cons
   std::vector<Secondary>& wave = work.waves[std::size_t(depth)];
   std::vector<Secondary>& next = work.waves[std::size_t(depth) + 1];
   next.clear();
-  for (Secondary& secondary : wave) {
-    secondary.hit = context_.accel.intersect(secondary.ray);
-    prefetch_triangles(std::span(&secondary.hit, 1));  // while the next rays are traced
+  // Each hit's triangle indices are requested while the next rays are traced, its vertices two
+  // rays later (once the indices have arrived).
+  constexpr std::size_t kLag = 2;
+  for (std::size_t s = 0; s < wave.size(); ++s) {
+    wave[s].hit = context_.accel.intersect(wave[s].ray);
+    prefetch_triangles(std::span(&wave[s].hit, 1));
+    if (s >= kLag) prefetch_vertices(std::span(&wave[s - kLag].hit, 1));
   }
+  for (std::size_t s = wave.size() > kLag ? wave.size() - kLag : 0; s < wave.size(); ++s)
+    prefetch_vertices(std::span(&wave[s].hit, 1));
   std::array<Ray, kLanes> lane_rays;
   std::array<Hit, kLanes> lane_hits;
   std::array<std::int32_t, kLanes> lane_index;

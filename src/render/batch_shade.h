@@ -129,6 +129,11 @@ class BatchShader {
   // Starts a block of camera pixels: no reflection ray waits yet.
   void start_block(Workspace& work) const;
 
+  // Cache hints for what prepare gathers of `hits`, in two steps some work apart: the triangles'
+  // vertex indices and materials, then (reading those indices) their vertices and normals.
+  void prefetch_triangles(std::span<const Hit> hits) const;
+  void prefetch_vertices(std::span<const Hit> hits) const;
+
   // Computes the shading arithmetic of the batchable camera hits among `hits` (at most kLanes; the
   // closest hits of `rays`, a packet of the block); pixels with `unbatched[k]` set are left out.
   void prepare(std::span<const Ray> rays, std::span<const Hit> hits, std::span<const bool> unbatched,
@@ -161,8 +166,6 @@ class BatchShader {
   bool batchable(const Hit& hit) const;
   // FlatScene::material_ids[triangle], from the runs below when the scene has few of them.
   std::uint32_t material_of_triangle(std::uint32_t triangle) const;
-  // A cache hint for the triangle indices and materials that compute_surfaces gathers for `hits`.
-  void prefetch_triangles(std::span<const Hit> hits) const;
   // The arithmetic of lanes.count hits at ray depth `depth` (rays[i], hits[i] batchable).
   void compute_lanes(Lanes& lanes, const std::array<Ray, kLanes>& rays, const std::array<Hit, kLanes>& hits,
                      int depth) const;

@@ -289,15 +289,20 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
       pending.clear();
       std::array<std::int32_t, kBlockPixels> pixel_of;  // per pixel k: its record in pending.pixels, or -1
       if (batching) batch.start_block(state.batch);
-      std::uint64_t start = 0;
-      for (int p = 0; p < packets; ++p) {
+      // Packet p is traced, then shaded two packets later: the triangle indices its hits need are
+      // requested after its trace, their vertices after the next one, so that the batch shader's
+      // gathers find them in the cache. Packets are still shaded in order, so the records are the
+      // same as when each is shaded right after its trace.
+      const auto packet_hits_of = [&](int p) {
         const int first = packet_start[std::size_t(p)], count = packet_start[std::size_t(p) + 1] - first;
-        const auto packet_rays = std::span(rays).subspan(std::size_t(first), std::size_t(count));
-        const auto packet_hits = std::span(hits).subspan(std::size_t(first), std::size_t(count));
+        return std::span(hits).subspan(std::size_t(first), std::size_t(count));
+      };
+      const auto trace_packet = [&](int p) {
+        const int first = packet_start[std::size_t(p)], count = packet_start[std::size_t(p) + 1] - first;
         const bool packet_timed = block_timed && std::any_of(timed.begin() + first, timed.begin() + first + count,
                                                              [](bool t) { return t; });
-        start = packet_timed ? __rdtsc() : 0;
-        accel.intersect_coherent(packet_rays, packet_hits);
+        const std::uint64_t start = packet_timed ? __rdtsc() : 0;
+        accel.intersect_coherent(std::span(rays).subspan(std::size_t(first), std::size_t(count)), packet_hits_of(p));
         if (packet_timed) {
           const std::uint64_t share = (__rdtsc() - start) / std::uint64_t(count);
           if (counts.intersect_ticks_per_depth.empty()) counts.intersect_ticks_per_depth.resize(1, 0);
@@ -307,9 +312,12 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
               ticks[k] = share;
             }
         }
+      };
+      const auto shade_packet = [&](int p) {
+        const int first = packet_start[std::size_t(p)], count = packet_start[std::size_t(p) + 1] - first;
         if (batching)  // the timed pixels are left to shade_camera_hit, which times them
-          batch.prepare(packet_rays, packet_hits, std::span(timed).subspan(std::size_t(first), std::size_t(count)),
-                        state.batch);
+          batch.prepare(std::span(rays).subspan(std::size_t(first), std::size_t(count)), packet_hits_of(p),
+                        std::span(timed).subspan(std::size_t(first), std::size_t(count)), state.batch);
         for (int k = first; k < first + count; ++k) {
           const int lane = k - first;
           if (batching && !timed[k] && !hits[k].found()) {
@@ -322,11 +330,19 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
                                     sampled_lights ? pixel_path_seed(xs[k], ys[k], s) : 0, counts, pending);
             continue;
           }
-          if (timed[k]) start = __rdtsc();
+          const std::uint64_t start = timed[k] ? __rdtsc() : 0;
           shade_camera_hit(timed[k] ? timed_context : context, rays[k], hits[k],
                            sampled_lights ? pixel_path_seed(xs[k], ys[k], s) : 0, counts, pending);
           if (timed[k]) ticks[k] += __rdtsc() - start;
         }
+      };
+      for (int p = 0; p < packets + 2; ++p) {
+        if (p < packets) {
+          trace_packet(p);
+          if (batching) batch.prefetch_triangles(packet_hits_of(p));
+        }
+        if (batching && p >= 1 && p <= packets) batch.prefetch_vertices(packet_hits_of(p - 1));
+        if (p >= 2) shade_packet(p - 2);
       }
       if (batching) batch.trace_reflections(state.batch, counts, pending);
 
@@ -347,7 +363,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
       }
 
       for (int k = 0; k < n; ++k) {
-        if (timed[k]) start = __rdtsc();
+        const std::uint64_t start = timed[k] ? __rdtsc() : 0;
         const std::uint64_t pixel = std::uint64_t(ys[k]) * std::uint64_t(width) + std::uint64_t(xs[k]);
         const Color c = guarded(pixel_of[k] < 0 ? batch.background()
                                                 : finish_camera_hit(pending, std::size_t(pixel_of[k]), state.shadows.blocked),
