@@ -235,15 +235,24 @@ void sample(const Input& in, int count, Output& out) {
   }
 }
 
-// pow(x[k], y) for the 16 lanes: four groups of four at a time with AVX2 (one register each),
-// two with SSE2 (two registers each; four would spill), to overlap pow's long dependency chains.
+// pow(x[k], y) for the 16 lanes: by binary powering where y is a whole number up to
+// lm::kMaxIntegerPower, else by lm::pow_many; four groups of four at a time with AVX2 (one
+// register each), two with SSE2 (two registers each; four would spill), to overlap the chains.
 void powers(const double* x, double y, double* out) {
   static_assert(kLanes == 16);
+  const bool whole = y >= 0.0 && y <= lm::kMaxIntegerPower && y == std::floor(y);
 #ifdef RT_LIGHT_SAMPLE_LANES_AVX2
-  lm::pow_many<4>(x, y, out);
+  if (whole)
+    lm::pow_integer_many<4>(x, y, out);
+  else
+    lm::pow_many<4>(x, y, out);
 #else
-  lm::pow_many<2>(x, y, out);
-  lm::pow_many<2>(x + 8, y, out + 8);
+  for (int half = 0; half < 2; ++half) {
+    if (whole)
+      lm::pow_integer_many<2>(x + 8 * half, y, out + 8 * half);
+    else
+      lm::pow_many<2>(x + 8 * half, y, out + 8 * half);
+  }
 #endif
 }
 

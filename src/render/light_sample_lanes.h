@@ -123,8 +123,9 @@ struct EmitOutput {
 };
 
 // One build of the lanes: `sample` computes `count` lanes (<= kLanes) of `in` into `out`;
-// `powers` sets out[k] = pow(x[k], y) for k < kLanes (lane_libm.h's pow: within 1 ulp of glibc's,
-// the same bits in both builds); `spherical` sets up four spherical triangles; `facing` computes
+// `powers` sets out[k] = pow(x[k], y) for k < kLanes (lane_libm.h: binary powering for a whole y up
+// to kMaxIntegerPower, within (y - 1) 2^-53 relative; else its pow, within 1 ulp of glibc's; the
+// same bits in both builds); `spherical` sets up four spherical triangles; `facing` computes
 // the n.l and highlights of a chunk's lanes in use, `emit` their terms (with `lit`) and shadow rays.
 struct Kernels {
   void (*sample)(const Input& in, int count, Output& out);
