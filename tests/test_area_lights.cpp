@@ -281,6 +281,32 @@ TEST_CASE("light sample lanes: the AVX2 build computes the baseline build's bits
     in.slots = round % 2 ? 1 + round / 2 % lanes::Input::kSlots : 0;
     for (double& slot : in.slot.v) slot = in.slots ? double(random() % std::uint64_t(in.slots)) : 0.0;
     const int count = 1 + round % lanes::kLanes;
+    if (in.slots > 0) {  // the choices and warp inputs of Kernels::choose, from a random cdf
+      double cdf = 0.0;
+      for (int s = 0; s < in.slots; ++s) {
+        in.low.v[s] = cdf;
+        in.high.v[s] = cdf = s + 1 == in.slots ? 1.0 : cdf + uniform(0.0, 1.0 - cdf);
+        in.solid_area.v[s] = uniform(0.0, 6.0);
+        in.alpha.v[s] = uniform(0.0, 3.0);
+      }
+      for (int i = 0; i < lanes::kLanes; ++i) {
+        in.ux.v[i] = uniform(0.0, 1.0);
+        in.uy.v[i] = i % 5 == 0 ? in.high.v[std::size_t(i) % std::size_t(in.slots)] : uniform(0.0, 1.0);  // ends too
+      }
+      lanes::Input chosen_a = in, chosen_b = in;
+      std::uint32_t triangle_a[lanes::kLanes], triangle_b[lanes::kLanes];
+      const int padded = (count + 3) / 4 * 4;
+      lanes::baseline_kernels().choose(chosen_a, padded, triangle_a);
+      avx2->choose(chosen_b, padded, triangle_b);
+      for (int i = 0; i < padded; ++i) {
+        CHECK(triangle_a[i] == triangle_b[i]);
+        CHECK(triangle_a[i] < std::uint32_t(in.slots));
+        CHECK(chosen_a.slot.v[i] == double(triangle_a[i]));
+        CHECK(std::memcmp(&chosen_a.v.v[i], &chosen_b.v.v[i], 8) == 0);
+        CHECK(std::memcmp(&chosen_a.angle.v[i], &chosen_b.angle.v[i], 8) == 0);
+        CHECK(chosen_a.by_solid_angle[i] == -1);
+      }
+    }
     lanes::Output a, b;
     lanes::baseline_kernels().sample(in, count, a);
     avx2->sample(in, count, b);

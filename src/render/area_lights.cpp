@@ -384,7 +384,6 @@ void EmitterSampler::draw(std::span<const Vec2d> u, light_sample_lanes::Chunk& c
   namespace lanes = light_sample_lanes;
   static const lanes::Kernels& kernels = lanes::best_kernels();
   lanes::Input& in = chunk.in;
-  std::array<Choice, lanes::kLanes> choices;
   for (int axis = 0; axis < 3; ++axis) in.point[axis] = point_[axis];
   const Vec3d emission(scene_.materials[emitter_.material].emission);
   for (int axis = 0; axis < 3; ++axis) in.emission[axis] = emission[axis];
@@ -397,21 +396,40 @@ void EmitterSampler::draw(std::span<const Vec2d> u, light_sample_lanes::Chunk& c
   // Gather each lane's sample (and without slots its triangle); the lanes past `count` up to a
   // multiple of 4 repeat the last one.
   const int padded = (count + 3) / 4 * 4;
-  // The choices first, in a pass of their own (a choice read back right after it was written
-  // stalled store forwarding), and before the slots, which wait for the views' set-up.
+  // Where every slot is sampled by solid angle, the choices and the warp's inputs are made in
+  // lanes (Kernels::choose); otherwise lane by lane, the choices in a pass of their own (a choice
+  // read back right after it was written stalled store forwarding).
   const auto u_of = [&](int k) { return u[std::size_t(std::min(k, count - 1))]; };
-  std::array<double, lanes::kLanes> uy;
-  for (int k = 0; k < padded; ++k) uy[std::size_t(k)] = u_of(k).y;
-  choose_many(std::span(uy).first(std::size_t(padded)), choices);
   if (by_slot) {
     if (!cached_) view_cached_triangles();
     const std::vector<double>& cdf = emitter_.cdf;
-    for (int s = 0; s < in.slots; ++s)  // choose's probability of triangle s
-      put_triangle(in, s, std::size_t(s), cdf[std::size_t(s)] - (s > 0 ? cdf[std::size_t(s) - 1] : 0.0),
-                   cache_[std::size_t(s)]);
+    bool all_by_solid_angle = true;
+    for (int s = 0; s < in.slots; ++s) {  // choose's probability of triangle s
+      const double low = s > 0 ? cdf[std::size_t(s) - 1] : 0.0;
+      const View& seen = cache_[std::size_t(s)];
+      put_triangle(in, s, std::size_t(s), cdf[std::size_t(s)] - low, seen);
+      in.low.v[s] = low;
+      in.high.v[s] = cdf[std::size_t(s)];
+      in.solid_area.v[s] = seen.spherical.solid_angle();
+      in.alpha.v[s] = seen.spherical.alpha();
+      all_by_solid_angle = all_by_solid_angle && seen.by_solid_angle;
+    }
+    if (all_by_solid_angle) {  // the choices and the warp's inputs in lanes
+      for (int k = 0; k < padded; ++k) {
+        in.ux.v[k] = u_of(k).x;
+        in.uy.v[k] = u_of(k).y;
+      }
+      kernels.choose(in, padded, chunk.triangle);
+      kernels.sample(in, count, chunk.out);
+      return;
+    }
   } else if (emitter_.triangles.size() > kCachedTriangles) {
     uncached_.resize(lanes::kLanes);
   }
+  std::array<double, lanes::kLanes> uy;
+  for (int k = 0; k < padded; ++k) uy[std::size_t(k)] = u_of(k).y;
+  std::array<Choice, lanes::kLanes> choices;
+  choose_many(std::span(uy).first(std::size_t(padded)), choices);
   for (int k = 0; k < padded; ++k) {
     const Vec2d uk = u_of(k);
     const Choice& choice = choices[std::size_t(k)];

@@ -218,6 +218,31 @@ template <int N, template <int> class Fetch>
   put(out.front, g, front);
 }
 
+// EmitterSampler::choose over lanes, with choose_many's operations: the index counts the cdf's
+// upper ends at or below uy, clamped to the last slot; v = (uy - low) / (high - low), clamped.
+void choose(Input& in, int count, std::uint32_t* triangle) {
+  const D4 zero{}, one = lm::broadcast(1.0), last = lm::broadcast(double(in.slots - 1));
+  for (int g = 0; g < count; g += 4) {
+    D4 ux, uy;
+    lm::load(ux, in.ux.v + g);
+    lm::load(uy, in.uy.v + g);
+    D4 index{};
+    for (int s = 0; s < in.slots; ++s) index = index + lm::select(uy < lm::broadcast(in.high.v[s]), zero, one);
+    const D4 slot = lm::select(last < index, last, index);
+    const lm::Lookup lookup = lm::make_lookup(slot);
+    const D4 low = lm::lookup(in.low.v, lookup), high = lm::lookup(in.high.v, lookup);
+    lm::store(in.slot.v + g, slot);
+    lm::store(in.v.v + g, lm::clamp((uy - low) / (high - low), zero, lm::broadcast(1.0 - 0x1p-53)));
+    lm::store(in.angle.v + g, ux * lm::lookup(in.solid_area.v, lookup) - lm::lookup(in.alpha.v, lookup));
+    lm::store(in.b1.v + g, zero);
+    lm::store(in.b2.v + g, zero);
+    lm::store(in.by_solid_angle + g, zero == zero);
+    alignas(32) double slots[4];
+    lm::store(slots, slot);
+    for (int l = 0; l < 4; ++l) triangle[g + l] = static_cast<std::uint32_t>(slots[l]);
+  }
+}
+
 // The groups of four in use, as many at a time as the build's registers hold (see Wide).
 void sample(const Input& in, int count, Output& out) {
 #ifdef RT_LIGHT_SAMPLE_LANES_AVX2
@@ -438,14 +463,14 @@ void emit(const Shading& shading, const Chunk& chunk, const FacingOutput& facing
 
 #ifdef RT_LIGHT_SAMPLE_LANES_AVX2
 const Kernels* avx2_kernels() {
-  static const Kernels kernels{&avx2::sample, &avx2::powers, &avx2::spherical, &avx2::facing, &avx2::emit,
+  static const Kernels kernels{&avx2::choose, &avx2::sample, &avx2::powers, &avx2::spherical, &avx2::facing, &avx2::emit,
                                       &avx2::set_origins};
   __builtin_cpu_init();  // idempotent; needed when called before the constructors have run
   return __builtin_cpu_supports("avx2") ? &kernels : nullptr;
 }
 #else
 const Kernels& baseline_kernels() {
-  static const Kernels kernels{&baseline::sample, &baseline::powers, &baseline::spherical, &baseline::facing,
+  static const Kernels kernels{&baseline::choose, &baseline::sample, &baseline::powers, &baseline::spherical, &baseline::facing,
                                &baseline::emit, &baseline::set_origins};
   return kernels;
 }

@@ -46,6 +46,11 @@ struct Input {
   Lanes area, probability;
   Vec3 solid_radiance;
   double emission[3];  // the emitter's emission (linear RGB), the same in every lane
+  // Kernels::choose's inputs, where every slot is sampled by solid angle: per lane the sample's
+  // point u = (ux, uy) in [0, 1)^2; per slot the power cdf's interval [low, high) and the
+  // spherical triangle's area (steradians) and angle at A (radians).
+  Lanes ux, uy;
+  Lanes low, high, solid_area, alpha;
 };
 
 // Per lane: the sample's barycentrics b1, b2, surface point and error bound (make_surface_point),
@@ -122,12 +127,16 @@ struct EmitOutput {
   alignas(64) float tfar[kLanes];
 };
 
-// One build of the lanes: `sample` computes `count` lanes (<= kLanes) of `in` into `out`;
+// One build of the lanes: `choose` makes EmitterSampler::choose's choice for `count` lanes of `in`
+// (slots > 0, every slot by solid angle: see Input) and the warp's inputs, bit for bit: the lane's
+// slot (the triangle: triangle[k]), angle ux * area - alpha, v uy rescaled to the slot's interval,
+// by_solid_angle set (b1, b2 zero: read but not used); `sample` computes `count` lanes (<= kLanes) of `in` into `out`;
 // `powers` sets out[k] = pow(x[k], y) for k < kLanes (lane_libm.h: binary powering for a whole y up
 // to kMaxIntegerPower, within (y - 1) 2^-53 relative; else its pow, within 1 ulp of glibc's; the
 // same bits in both builds); `spherical` sets up four spherical triangles; `facing` computes
 // the n.l and highlights of a chunk's lanes in use, `emit` their terms (with `lit`) and shadow rays.
 struct Kernels {
+  void (*choose)(Input& in, int count, std::uint32_t* triangle);
   void (*sample)(const Input& in, int count, Output& out);
   void (*powers)(const double* x, double y, double* out);
   void (*spherical)(const SphericalInput& in, SphericalOutput& out);

@@ -76,6 +76,7 @@ class SphericalTriangle {
   // sample's steps, for computing it over many u at once (light_sample_lanes.h): u.x chooses the
   // angle whose sine and cosine the warp takes; the rest reads the members below.
   double warp_angle(double ux) const { return ux * area_ - alpha_; }
+  double alpha() const { return alpha_; }  // radians
   const Vec3d& a() const { return A_; }
   const Vec3d& b() const { return B_; }
   const Vec3d& c_perp() const { return C_perp_; }
