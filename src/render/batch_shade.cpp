@@ -167,10 +167,11 @@ void BatchShader::prepare(std::span<const Ray> rays, std::span<const Hit> hits, 
 }
 
 void BatchShader::prefetch_triangles(std::span<const Hit> hits) const {
+  const FlatScene& flat = context_.flat;
   for (const Hit& hit : hits)
-    if (hit.found()) {
-      __builtin_prefetch(&context_.flat.triangles[hit.primitive]);
-      if (run_first_.empty()) __builtin_prefetch(&context_.flat.material_ids[hit.primitive]);
+    if (hit.found() && !flat.is_sphere(hit.primitive)) {
+      __builtin_prefetch(&flat.triangles[hit.primitive]);
+      if (run_first_.empty()) __builtin_prefetch(&flat.material_ids[hit.primitive]);
     }
 }
 
