@@ -209,7 +209,8 @@ void apply_emission_texture(const EmitterSampler& sampler, const light_sample_la
 // n.l_k > 0, shadowed by its own ray. The emitter-level rules (unlit material, behind a planar
 // emitter, below the horizon) make every term of the emitter zero in both modes: pruned, no
 // sample is drawn; unpruned, the samples are drawn and traced and add zero. The pow is the lanes'
-// (lane_libm.h, within 1 ulp of glibc's; what that does to images is in docs/performance.md).
+// (lane_libm.h: binary powering for a whole shininess, else within 1 ulp of glibc's; what that
+// does to images is in docs/performance.md).
 // Kept out of line, so that scenes without emitters run shade_surface as it was compiled before
 // area lights.
 template <class Shadows>
