@@ -32,9 +32,9 @@ struct VertexArrays {
 // One build of the arithmetic. gather: the vertices and vertex normals of triangles[i] (vertex
 // indices), the direction of rays[i] and the barycentrics of hits[i] into `in`, for `count` lanes,
 // lanes past it up to a multiple of 4 copying lane 0 (so that no uninitialised value enters the
-// arithmetic); four lanes at a time, by 16-byte loads and transposes. surfaces: make_surface_point, the shading normal (interpolated,
-// unit, flipped towards the viewer on a two-sided back face), the unit direction and the
-// reflection ray of block.count lanes. light: one light's direction, unshadowed intensity, n.l,
+// arithmetic); four lanes at a time, by 16-byte loads and transposes. surfaces:
+// make_surface_point, the shading normal (interpolated, unit, flipped towards the viewer on a
+// two-sided back face), the unit direction and the reflection ray of block.count lanes. light: one light's direction, unshadowed intensity, n.l,
 // n.h, geometric cosine and shadow ray (shade_surface's, before the pow of the highlight). terms:
 // the light's term, intensity (ambient + diffuse n.l + specular pow(n.h, s)), the highlight zero
 // where it is skipped.

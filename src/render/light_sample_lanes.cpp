@@ -463,15 +463,15 @@ void emit(const Shading& shading, const Chunk& chunk, const FacingOutput& facing
 
 #ifdef RT_LIGHT_SAMPLE_LANES_AVX2
 const Kernels* avx2_kernels() {
-  static const Kernels kernels{&avx2::choose, &avx2::sample, &avx2::powers, &avx2::spherical, &avx2::facing, &avx2::emit,
-                                      &avx2::set_origins};
+  static const Kernels kernels{&avx2::choose, &avx2::sample, &avx2::powers, &avx2::spherical,
+                               &avx2::facing, &avx2::emit, &avx2::set_origins};
   __builtin_cpu_init();  // idempotent; needed when called before the constructors have run
   return __builtin_cpu_supports("avx2") ? &kernels : nullptr;
 }
 #else
 const Kernels& baseline_kernels() {
-  static const Kernels kernels{&baseline::choose, &baseline::sample, &baseline::powers, &baseline::spherical, &baseline::facing,
-                               &baseline::emit, &baseline::set_origins};
+  static const Kernels kernels{&baseline::choose, &baseline::sample, &baseline::powers, &baseline::spherical,
+                               &baseline::facing, &baseline::emit, &baseline::set_origins};
   return kernels;
 }
 

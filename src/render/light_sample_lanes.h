@@ -130,7 +130,8 @@ struct EmitOutput {
 // One build of the lanes: `choose` makes EmitterSampler::choose's choice for `count` lanes of `in`
 // (slots > 0, every slot by solid angle: see Input) and the warp's inputs, bit for bit: the lane's
 // slot (the triangle: triangle[k]), angle ux * area - alpha, v uy rescaled to the slot's interval,
-// by_solid_angle set (b1, b2 zero: read but not used); `sample` computes `count` lanes (<= kLanes) of `in` into `out`;
+// by_solid_angle set (b1, b2 zero: read but not used); `sample` computes `count` lanes (<= kLanes)
+// of `in` into `out`;
 // `powers` sets out[k] = pow(x[k], y) for k < kLanes (lane_libm.h: binary powering for a whole y up
 // to kMaxIntegerPower, within (y - 1) 2^-53 relative; else its pow, within 1 ulp of glibc's; the
 // same bits in both builds); `spherical` sets up four spherical triangles; `facing` computes
