@@ -34,10 +34,10 @@ struct VertexArrays {
 // lanes past it up to a multiple of 4 copying lane 0 (so that no uninitialised value enters the
 // arithmetic); four lanes at a time, by 16-byte loads and transposes. surfaces:
 // make_surface_point, the shading normal (interpolated, unit, flipped towards the viewer on a
-// two-sided back face), the unit direction and the reflection ray of block.count lanes. light: one light's direction, unshadowed intensity, n.l,
-// n.h, geometric cosine and shadow ray (shade_surface's, before the pow of the highlight). terms:
-// the light's term, intensity (ambient + diffuse n.l + specular pow(n.h, s)), the highlight zero
-// where it is skipped.
+// two-sided back face), the unit direction and the reflection ray of block.count lanes. light:
+// one light's direction, unshadowed intensity, n.l, n.h, geometric cosine and shadow ray
+// (shade_surface's, before the pow of the highlight). terms: the light's term, intensity (ambient
+// + diffuse n.l + specular pow(n.h, s)), the highlight zero where it is skipped.
 struct Kernels {
   void (*gather)(const VertexArrays& vertices, const Vec3u* triangles, const Ray* rays, const Hit* hits, int count,
                  Gathered& in);

@@ -196,15 +196,10 @@ void BatchShader::compute_surfaces(Lanes& block, const std::array<Ray, kLanes>& 
                                    const std::array<Hit, kLanes>& hits, int depth) const {
   const FlatScene& flat = context_.flat;
   const int lanes = block.count;
-  // Indices first, then every vertex line requested at once, then the vertices: the cache misses
-  // of all lanes overlap.
+  // The callers have requested the triangles and vertices some work before (prefetch_triangles,
+  // prefetch_vertices).
   std::array<Vec3u, kLanes> triangles{};  // zeros past the count: never read, but the compiler cannot tell
   for (int i = 0; i < lanes; ++i) triangles[std::size_t(i)] = flat.triangles[hits[std::size_t(i)].primitive];
-  for (int i = 0; i < lanes; ++i)
-    for (const std::uint32_t v : {triangles[std::size_t(i)].x, triangles[std::size_t(i)].y, triangles[std::size_t(i)].z}) {
-      __builtin_prefetch(&flat.positions[v]);
-      __builtin_prefetch(&flat.normals[v]);
-    }
   for (int i = 0; i < lanes; ++i) block.material[std::size_t(i)] = material_of_triangle(hits[std::size_t(i)].primitive);
   Gathered in;
   kernels_.gather(batch_lanes::VertexArrays{flat.positions.data(), flat.normals.data(), flat.positions.size()},

@@ -406,12 +406,8 @@ RT_LANE_INLINE void pow_integer_many(const double* x, double n, double* out) {
     load(base.g[i], x + 4 * i);
     result.g[i] = broadcast(1.0);
   }
-  bool first = true;  // result is still 1: the first factor is copied, not multiplied in
   while (remaining != 0) {
-    if (remaining & 1u) {
-      result = first ? base : result * base;
-      first = false;
-    }
+    if (remaining & 1u) result = result * base;  // the first time 1 * base: base exactly
     remaining >>= 1;
     if (remaining != 0) base = base * base;
   }

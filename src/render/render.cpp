@@ -293,16 +293,16 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
       // requested after its trace, their vertices after the next one, so that the batch shader's
       // gathers find them in the cache. Packets are still shaded in order, so the records are the
       // same as when each is shaded right after its trace.
-      const auto packet_hits_of = [&](int p) {
+      const auto packet_of = [&](auto& block_array, int p) {  // packet p's part of rays, hits or timed
         const int first = packet_start[std::size_t(p)], count = packet_start[std::size_t(p) + 1] - first;
-        return std::span(hits).subspan(std::size_t(first), std::size_t(count));
+        return std::span(block_array).subspan(std::size_t(first), std::size_t(count));
       };
       const auto trace_packet = [&](int p) {
         const int first = packet_start[std::size_t(p)], count = packet_start[std::size_t(p) + 1] - first;
         const bool packet_timed = block_timed && std::any_of(timed.begin() + first, timed.begin() + first + count,
                                                              [](bool t) { return t; });
         const std::uint64_t start = packet_timed ? __rdtsc() : 0;
-        accel.intersect_coherent(std::span(rays).subspan(std::size_t(first), std::size_t(count)), packet_hits_of(p));
+        accel.intersect_coherent(packet_of(rays, p), packet_of(hits, p));
         if (packet_timed) {
           const std::uint64_t share = (__rdtsc() - start) / std::uint64_t(count);
           if (counts.intersect_ticks_per_depth.empty()) counts.intersect_ticks_per_depth.resize(1, 0);
@@ -316,8 +316,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
       const auto shade_packet = [&](int p) {
         const int first = packet_start[std::size_t(p)], count = packet_start[std::size_t(p) + 1] - first;
         if (batching)  // the timed pixels are left to shade_camera_hit, which times them
-          batch.prepare(std::span(rays).subspan(std::size_t(first), std::size_t(count)), packet_hits_of(p),
-                        std::span(timed).subspan(std::size_t(first), std::size_t(count)), state.batch);
+          batch.prepare(packet_of(rays, p), packet_of(hits, p), packet_of(timed, p), state.batch);
         for (int k = first; k < first + count; ++k) {
           const int lane = k - first;
           if (batching && !timed[k] && !hits[k].found()) {
@@ -339,9 +338,9 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
       for (int p = 0; p < packets + 2; ++p) {
         if (p < packets) {
           trace_packet(p);
-          if (batching) batch.prefetch_triangles(packet_hits_of(p));
+          if (batching) batch.prefetch_triangles(packet_of(hits, p));
         }
-        if (batching && p >= 1 && p <= packets) batch.prefetch_vertices(packet_hits_of(p - 1));
+        if (batching && p >= 1 && p <= packets) batch.prefetch_vertices(packet_of(hits, p - 1));
         if (p >= 2) shade_packet(p - 2);
       }
       if (batching) batch.trace_reflections(state.batch, counts, pending);
