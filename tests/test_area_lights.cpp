@@ -41,6 +41,13 @@ using rt::Vec3f;
 
 constexpr double kPi = std::numbers::pi;
 
+// Every build of the light-sample kernels this CPU runs, the baseline first.
+std::vector<const rt::light_sample_lanes::Kernels*> every_lanes_build() {
+  std::vector<const rt::light_sample_lanes::Kernels*> builds{&rt::light_sample_lanes::baseline_kernels()};
+  for (const rt::light_sample_lanes::Kernels* build : rt::light_sample_lanes::wider_kernels()) builds.push_back(build);
+  return builds;
+}
+
 // Lambert's formula (1760) for the cosine-weighted solid angle of a polygon seen from p with unit
 // normal n: integral of max(n.w, 0) over the directions w towards the polygon, when the polygon is
 // entirely above p's tangent plane: (1/2) |sum_i theta_i n . normalize(v_i x v_i+1)|, v_i the unit
@@ -232,12 +239,14 @@ TEST_CASE("EmitterSampler::sample_many: sample's bits in every lane, whatever th
   CHECK(unlit > 0);    // the sphere's far side
 }
 
-// The two builds of sample_many's lanes (render/light_sample_lanes.h: baseline SSE2 and AVX2) on the
-// same random lanes give the same bits; the test above ties the CPU's build to sample().
-TEST_CASE("light sample lanes: the AVX2 build computes the baseline build's bits") {
+// The builds of sample_many's lanes (render/light_sample_lanes.h: baseline SSE2, AVX2 and
+// AVX-512, whichever this CPU runs) on the same random lanes give the same bits, for every count of
+// lanes (the AVX-512 build takes 16, 8 and 4 at a time); the test above ties the CPU's build to
+// sample().
+TEST_CASE("light sample lanes: the AVX2 and AVX-512 builds compute the baseline build's bits") {
   namespace lanes = rt::light_sample_lanes;
-  const lanes::Kernels* avx2 = lanes::avx2_kernels();
-  if (!avx2) {
+  const std::vector<const lanes::Kernels*> wider = lanes::wider_kernels();
+  if (wider.empty()) {
     SUCCEED("this CPU has no AVX2: only the baseline build runs here");
     return;
   }
@@ -293,34 +302,41 @@ TEST_CASE("light sample lanes: the AVX2 build computes the baseline build's bits
         in.ux.v[i] = uniform(0.0, 1.0);
         in.uy.v[i] = i % 5 == 0 ? in.high.v[std::size_t(i) % std::size_t(in.slots)] : uniform(0.0, 1.0);  // ends too
       }
-      lanes::Input chosen_a = in, chosen_b = in;
-      std::uint32_t triangle_a[lanes::kLanes], triangle_b[lanes::kLanes];
       const int padded = (count + 3) / 4 * 4;
+      lanes::Input chosen_a = in;
+      std::uint32_t triangle_a[lanes::kLanes];
       lanes::baseline_kernels().choose(chosen_a, padded, triangle_a);
-      avx2->choose(chosen_b, padded, triangle_b);
-      for (int i = 0; i < padded; ++i) {
-        CHECK(triangle_a[i] == triangle_b[i]);
-        CHECK(triangle_a[i] < std::uint32_t(in.slots));
-        CHECK(chosen_a.slot.v[i] == double(triangle_a[i]));
-        CHECK(std::memcmp(&chosen_a.v.v[i], &chosen_b.v.v[i], 8) == 0);
-        CHECK(std::memcmp(&chosen_a.angle.v[i], &chosen_b.angle.v[i], 8) == 0);
-        CHECK(chosen_a.by_solid_angle[i] == -1);
+      for (const lanes::Kernels* build : wider) {
+        lanes::Input chosen_b = in;
+        std::uint32_t triangle_b[lanes::kLanes];
+        build->choose(chosen_b, padded, triangle_b);
+        for (int i = 0; i < padded; ++i) {
+          CHECK(triangle_a[i] == triangle_b[i]);
+          CHECK(triangle_a[i] < std::uint32_t(in.slots));
+          CHECK(chosen_a.slot.v[i] == double(triangle_a[i]));
+          CHECK(std::memcmp(&chosen_a.v.v[i], &chosen_b.v.v[i], 8) == 0);
+          CHECK(std::memcmp(&chosen_a.angle.v[i], &chosen_b.angle.v[i], 8) == 0);
+          CHECK(chosen_a.by_solid_angle[i] == -1);
+        }
       }
     }
-    lanes::Output a, b;
+    lanes::Output a;
     lanes::baseline_kernels().sample(in, count, a);
-    avx2->sample(in, count, b);
-    for (int i = 0; i < count; ++i) {
-      CHECK(a.valid[i] == b.valid[i]);
-      if (!a.valid[i]) continue;
-      CHECK(a.front[i] == b.front[i]);
-      for (const auto& [x, y] : {std::pair{&a.point, &b.point}, std::pair{&a.direction, &b.direction},
-                                 std::pair{&a.normal, &b.normal}, std::pair{&a.radiance_over_pdf, &b.radiance_over_pdf}})
-        CHECK((std::memcmp(&x->x.v[i], &y->x.v[i], 8) == 0 && std::memcmp(&x->y.v[i], &y->y.v[i], 8) == 0 &&
-               std::memcmp(&x->z.v[i], &y->z.v[i], 8) == 0));
-      for (const auto& [x, y] : {std::pair{&a.b1, &b.b1}, std::pair{&a.b2, &b.b2}, std::pair{&a.error_bound, &b.error_bound},
-                                 std::pair{&a.distance, &b.distance}})
-        CHECK(std::memcmp(&x->v[i], &y->v[i], 8) == 0);
+    for (const lanes::Kernels* build : wider) {
+      lanes::Output b;
+      build->sample(in, count, b);
+      for (int i = 0; i < count; ++i) {
+        CHECK(a.valid[i] == b.valid[i]);
+        if (!a.valid[i]) continue;
+        CHECK(a.front[i] == b.front[i]);
+        for (const auto& [x, y] : {std::pair{&a.point, &b.point}, std::pair{&a.direction, &b.direction},
+                                   std::pair{&a.normal, &b.normal}, std::pair{&a.radiance_over_pdf, &b.radiance_over_pdf}})
+          CHECK((std::memcmp(&x->x.v[i], &y->x.v[i], 8) == 0 && std::memcmp(&x->y.v[i], &y->y.v[i], 8) == 0 &&
+                 std::memcmp(&x->z.v[i], &y->z.v[i], 8) == 0));
+        for (const auto& [x, y] : {std::pair{&a.b1, &b.b1}, std::pair{&a.b2, &b.b2}, std::pair{&a.error_bound, &b.error_bound},
+                                   std::pair{&a.distance, &b.distance}})
+          CHECK(std::memcmp(&x->v[i], &y->v[i], 8) == 0);
+      }
     }
   }
 }
@@ -372,7 +388,7 @@ TEST_CASE("lane sincos: within 1 ulp of glibc's sin and cos") {
 // where the result underflows; for any other exponent within 1 ulp of glibc's where the result is
 // normal, within one subnormal step below that, and equal to glibc's on the special cases it
 // answers itself or hands to glibc. Both builds of the kernel (SSE2, AVX2) give the same bits.
-TEST_CASE("lane pow: whole n within (n - 1) 2^-53 relative, others within 1 ulp of glibc's, same bits in both builds") {
+TEST_CASE("lane pow: whole n within (n - 1) 2^-53 relative, others within 1 ulp of glibc's, same bits in every build") {
   namespace lanes = rt::light_sample_lanes;
   std::mt19937_64 random(2027);
   const auto uniform = [&](double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(random); };
@@ -399,8 +415,8 @@ TEST_CASE("lane pow: whole n within (n - 1) 2^-53 relative, others within 1 ulp 
       ++chunks_with_fallback;
     }
     lanes::baseline_kernels().powers(x.data(), y, a.data());
-    if (const lanes::Kernels* avx2 = lanes::avx2_kernels()) {
-      avx2->powers(x.data(), y, b.data());
+    for (const lanes::Kernels* build : lanes::wider_kernels()) {
+      build->powers(x.data(), y, b.data());
       REQUIRE(std::memcmp(a.data(), b.data(), sizeof a) == 0);
     }
     for (std::size_t i = 0; i < x.size(); ++i) {
@@ -477,8 +493,8 @@ TEST_CASE("lane atan2: within 1 ulp of glibc's atan2 for y >= 0") {
 
 // SphericalTriangle::set_up_many's lanes give the constructor's bits (which takes the same path
 // with one triangle), for one to six triangles, degenerate ones included, seen from one point or
-// each from its own; and both builds agree.
-TEST_CASE("SphericalTriangle::set_up_many: the constructor's bits in every lane, in both builds") {
+// each from its own; and every build agrees.
+TEST_CASE("SphericalTriangle::set_up_many: the constructor's bits in every lane, in every build") {
   namespace lanes = rt::light_sample_lanes;
   std::mt19937_64 random(2029);
   std::uniform_real_distribution<double> coordinate(-2.0, 2.0);
@@ -510,8 +526,8 @@ TEST_CASE("SphericalTriangle::set_up_many: the constructor's bits in every lane,
       REQUIRE(same(one, each[i]));
       if (points[i] == p) REQUIRE(same(each[i], many[i]));
     }
-    // The two builds of the kernel on the same lanes.
-    if (const lanes::Kernels* avx2 = lanes::avx2_kernels()) {
+    // The builds of the kernel on the same lanes.
+    for (const lanes::Kernels* build : lanes::wider_kernels()) {
       lanes::SphericalInput in;
       for (std::size_t i = 0; i < 4; ++i) {
         const std::size_t k = std::min(i, count - 1);
@@ -526,7 +542,7 @@ TEST_CASE("SphericalTriangle::set_up_many: the constructor's bits in every lane,
       }
       lanes::SphericalOutput a, b;
       lanes::baseline_kernels().spherical(in, a);
-      avx2->spherical(in, b);
+      build->spherical(in, b);
       for (const auto& [x, y] : {std::pair{&a.a, &b.a}, std::pair{&a.b, &b.b}, std::pair{&a.c_perp, &b.c_perp}}) {
         REQUIRE(same(x->x.v, y->x.v));  // the lanes only: LaneArray's alignment pads it
         REQUIRE(same(x->y.v, y->y.v));
@@ -582,8 +598,7 @@ TEST_CASE("light sample lanes: facing gives the scalar n.l and the pow of the sc
     }
     lanes::baseline_kernels().powers(n_dot_h.data(), shading.shininess, expected_power.data());
     if (!shading.highlights) expected_power.fill(1.0);
-    for (const lanes::Kernels* kernels : {&lanes::baseline_kernels(), lanes::avx2_kernels()}) {
-      if (!kernels) continue;
+    for (const lanes::Kernels* kernels : every_lanes_build()) {
       lanes::FacingOutput out;
       kernels->facing(shading, chunk, out);
       REQUIRE(std::memcmp(out.n_dot_l.v, expected_n_dot_l.data(), used * sizeof(double)) == 0);
@@ -596,7 +611,7 @@ TEST_CASE("light sample lanes: facing gives the scalar n.l and the pow of the sc
 
 // The emit kernel gives shade.cpp's scalar term, radiance (C_d n.l + C_s power) / (pi N), and
 // shadow_ray_to_sample's ray from offset_ray_origin's origin (set_origins' for either side of the
-// surface), bit for bit, in both builds, with
+// surface), bit for bit, in every build, with
 // robust and fixed offsets, light points on either side and samples at the shading point.
 TEST_CASE("light sample lanes: emit gives the scalar terms and shadow_ray_to_sample's rays") {
   namespace lanes = rt::light_sample_lanes;
@@ -654,8 +669,7 @@ TEST_CASE("light sample lanes: emit gives the scalar terms and shadow_ray_to_sam
       facing.n_dot_l.v[i] = coordinate(random);
       facing.power.v[i] = positive(random);
     }
-    for (const lanes::Kernels* kernels : {&lanes::baseline_kernels(), lanes::avx2_kernels()}) {
-      if (!kernels) continue;
+    for (const lanes::Kernels* kernels : every_lanes_build()) {
       kernels->set_origins(shading);
       for (int side = 0; side < 2; ++side) {
         const Vec3f expected = rt::offset_ray_origin(policy, surface, side == 0 ? surface.geometric_normal : -surface.geometric_normal);

@@ -19,32 +19,36 @@ namespace rt::lane_math {
 
 #define RT_LANE_INLINE [[gnu::always_inline]] inline
 
-#ifdef __AVX2__
-inline namespace avx2 {
-#else
-inline namespace sse2 {
-#endif
+inline namespace RT_LANE_NAMESPACE {
 
 // N groups of four lanes as one value: every operation is issued for all N groups before the
 // next, so that the out-of-order core overlaps their dependency chains. pow's chain is about 250
 // cycles long (two divisions, two polynomials, a dozen exact-product steps), longer than the
 // reorder window holds for one group: four groups at a time (AVX2) take half the time per value
-// that one does. With SSE2 (two registers a group) more than two groups spill.
-template <int N>
+// that one does. With SSE2 (two registers a group) more than two groups spill. A group G is D4
+// or, in the AVX-512 build, D8 (lane_math.h).
+template <class G>
+using MaskOf = decltype(G{} < G{});
+template <int N, class G = D4>
+struct WideMask;
+template <int N, class G = D4>
 struct Wide {
-  D4 g[N];
+  static constexpr int kGroups = N, kGroupLanes = int(sizeof(G) / sizeof(double)), kLanes = N * kGroupLanes;
+  using Group = G;
+  using Mask = WideMask<N, G>;
+  G g[N];
 };
-template <int N>
+template <int N, class G>
 struct WideMask {
-  M4 g[N];
+  MaskOf<G> g[N];
 };
 
 #define RT_WIDE_EACH(expression)   \
   _Pragma("GCC unroll 16") for (int i = 0; i < N; ++i) expression
-#define RT_WIDE_BINARY(Result, op, Operand)                                            \
-  template <int N>                                                                     \
-  RT_LANE_INLINE Result<N> operator op(const Operand<N>& a, const Operand<N>& b) {     \
-    Result<N> r;                                                                       \
+#define RT_WIDE_BINARY(Result, op, Operand)                                                  \
+  template <int N, class G>                                                                  \
+  RT_LANE_INLINE Result<N, G> operator op(const Operand<N, G>& a, const Operand<N, G>& b) {  \
+    Result<N, G> r;                                                                          \
     RT_WIDE_EACH(r.g[i] = a.g[i] op b.g[i]);                                          \
     return r;                                                                          \
   }
@@ -61,18 +65,18 @@ RT_WIDE_BINARY(WideMask, &, WideMask)
 RT_WIDE_BINARY(WideMask, |, WideMask)
 #undef RT_WIDE_BINARY
 
-// Unary and binary functions group by group: f(a) and f(a, b) of lane_math.h's D4 or M4.
+// Unary and binary functions group by group: f(a) and f(a, b) of lane_math.h's groups or masks.
 #define RT_WIDE_UNARY(Result, name, Operand)                   \
-  template <int N>                                             \
-  RT_LANE_INLINE Result<N> name(const Operand<N>& a) {         \
-    Result<N> r;                                               \
+  template <int N, class G>                                    \
+  RT_LANE_INLINE Result<N, G> name(const Operand<N, G>& a) {   \
+    Result<N, G> r;                                            \
     RT_WIDE_EACH(r.g[i] = name(a.g[i]));                       \
     return r;                                                  \
   }
-#define RT_WIDE_FUNCTION(name)                                         \
-  template <int N>                                                     \
-  RT_LANE_INLINE Wide<N> name(const Wide<N>& a, const Wide<N>& b) {    \
-    Wide<N> r;                                                         \
+#define RT_WIDE_FUNCTION(name)                                                 \
+  template <int N, class G>                                                    \
+  RT_LANE_INLINE Wide<N, G> name(const Wide<N, G>& a, const Wide<N, G>& b) {   \
+    Wide<N, G> r;                                                              \
     RT_WIDE_EACH(r.g[i] = name(a.g[i], b.g[i]));                       \
     return r;                                                          \
   }
@@ -87,33 +91,33 @@ RT_WIDE_FUNCTION(bit_or)
 #undef RT_WIDE_UNARY
 #undef RT_WIDE_FUNCTION
 
-template <int N>
-RT_LANE_INLINE Wide<N> select(const WideMask<N>& m, const Wide<N>& a, const Wide<N>& b) {
-  Wide<N> r;
+template <int N, class G>
+RT_LANE_INLINE Wide<N, G> select(const WideMask<N, G>& m, const Wide<N, G>& a, const Wide<N, G>& b) {
+  Wide<N, G> r;
   RT_WIDE_EACH(r.g[i] = select(m.g[i], a.g[i], b.g[i]));
   return r;
 }
-template <int N>
-RT_LANE_INLINE Wide<N> clamp(const Wide<N>& v, const Wide<N>& lo, const Wide<N>& hi) {
-  Wide<N> r;
+template <int N, class G>
+RT_LANE_INLINE Wide<N, G> clamp(const Wide<N, G>& v, const Wide<N, G>& lo, const Wide<N, G>& hi) {
+  Wide<N, G> r;
   RT_WIDE_EACH(r.g[i] = clamp(v.g[i], lo.g[i], hi.g[i]));
   return r;
 }
-template <int bits, int N>
-RT_LANE_INLINE Wide<N> shift_left(const Wide<N>& a) {
-  Wide<N> r;
+template <int bits, int N, class G>
+RT_LANE_INLINE Wide<N, G> shift_left(const Wide<N, G>& a) {
+  Wide<N, G> r;
   RT_WIDE_EACH(r.g[i] = shift_left<bits>(a.g[i]));
   return r;
 }
-template <int bits, int N>
-RT_LANE_INLINE Wide<N> shift_right(const Wide<N>& a) {
-  Wide<N> r;
+template <int bits, int N, class G>
+RT_LANE_INLINE Wide<N, G> shift_right(const Wide<N, G>& a) {
+  Wide<N, G> r;
   RT_WIDE_EACH(r.g[i] = shift_right<bits>(a.g[i]));
   return r;
 }
 #undef RT_WIDE_EACH
 
-// A constant in every lane of a value of type V (D4 or Wide<N>).
+// A constant in every lane of a value of type V (a group or Wide<N, G>).
 template <class V>
 struct Splat;
 template <>
@@ -121,16 +125,25 @@ struct Splat<D4> {
   RT_LANE_INLINE static D4 value(double x) { return broadcast(x); }
   RT_LANE_INLINE static D4 bits(std::uint64_t b) { return from_bits(b); }
 };
-template <int N>
-struct Splat<Wide<N>> {
-  RT_LANE_INLINE static Wide<N> value(double x) {
-    Wide<N> r;
-    for (D4& g : r.g) g = broadcast(x);
+#ifdef __AVX512F__
+template <>
+struct Splat<D8> {
+  RT_LANE_INLINE static D8 value(double x) { return {_mm512_set1_pd(x)}; }
+  RT_LANE_INLINE static D8 bits(std::uint64_t b) {
+    return {_mm512_castsi512_pd(_mm512_set1_epi64(static_cast<long long>(b)))};
+  }
+};
+#endif
+template <int N, class G>
+struct Splat<Wide<N, G>> {
+  RT_LANE_INLINE static Wide<N, G> value(double x) {
+    Wide<N, G> r;
+    for (G& g : r.g) g = Splat<G>::value(x);
     return r;
   }
-  RT_LANE_INLINE static Wide<N> bits(std::uint64_t b) {
-    Wide<N> r;
-    for (D4& g : r.g) g = from_bits(b);
+  RT_LANE_INLINE static Wide<N, G> bits(std::uint64_t b) {
+    Wide<N, G> r;
+    for (G& g : r.g) g = Splat<G>::bits(b);
     return r;
   }
 };
@@ -414,7 +427,7 @@ RT_LANE_INLINE void pow_integer_many(const double* x, double n, double* out) {
   for (int i = 0; i < N; ++i) store(out + 4 * i, result.g[i]);
 }
 
-}  // namespace avx2 or sse2
+}  // namespace RT_LANE_NAMESPACE
 
 #undef RT_LANE_INLINE
 

@@ -4,9 +4,11 @@
 // helpers below reproduce unary minus, std::max, std::abs, std::clamp, ?: and the float32 round
 // trips of ray_offset_detail bit for bit, without branches. Two implementations with one
 // interface: SSE2 intrinsics (two registers per value; every x86-64 has them) and, in a file built
-// with -mavx2, AVX ones (one register). Each lives in its own inline namespace, so the two builds'
-// types and helpers never share a name. (GCC's generic 32-byte vectors lower their comparisons to
-// scalar code without AVX, hence the intrinsics.)
+// with -mavx2, AVX ones (one register). A file built with -mavx512f -mavx512dq -mavx512vl has the
+// AVX ones and D8, eight lanes in one register with the same operations. Each build lives in its
+// own inline namespace (RT_LANE_NAMESPACE: sse2, avx2 or avx512), so no two builds' types and
+// helpers share a name. (GCC's generic 32-byte vectors lower their comparisons to scalar code
+// without AVX, hence the intrinsics.)
 
 #include <immintrin.h>
 
@@ -17,8 +19,16 @@ namespace rt::lane_math {
 
 #define RT_LANE_INLINE [[gnu::always_inline]] inline
 
+#if defined(__AVX512F__) && defined(__AVX512DQ__) && defined(__AVX512VL__)
+#define RT_LANE_NAMESPACE avx512
+#elif defined(__AVX2__)
+#define RT_LANE_NAMESPACE avx2
+#else
+#define RT_LANE_NAMESPACE sse2
+#endif
+
 #ifdef __AVX2__
-inline namespace avx2 {
+inline namespace RT_LANE_NAMESPACE {
 
 struct D4 {
   __m256d v;  // D4{} is all zeros
@@ -133,9 +143,9 @@ RT_LANE_INLINE D4 lookup(const double* table, const Lookup& l) {
   return {_mm256_castps_pd(_mm256_permutevar8x32_ps(_mm256_castpd_ps(_mm256_loadu_pd(table)), l.index))};
 }
 
-}  // namespace avx2
+}  // namespace RT_LANE_NAMESPACE
 #else
-inline namespace sse2 {
+inline namespace RT_LANE_NAMESPACE {
 
 struct D4 {
   __m128d lo, hi;  // lanes 0-1 and 2-3; D4{} is all zeros
@@ -253,7 +263,7 @@ RT_LANE_INLINE D4 shift_right(const D4& a) {
           _mm_castsi128_pd(_mm_srli_epi64(_mm_castpd_si128(a.hi), bits))};
 }
 
-}  // namespace sse2
+}  // namespace RT_LANE_NAMESPACE
 #endif
 
 // Built on either implementation.
@@ -345,11 +355,7 @@ RT_LANE_INLINE F4 round_away(const D4& p, const D4& away) {
 // Three-vectors of lanes (world space, double) and glm's operations on them, with glm's order of
 // operations. Xyz's layout differs between the implementations, so it lives in each one's inline
 // namespace.
-#ifdef __AVX2__
-inline namespace avx2 {
-#else
-inline namespace sse2 {
-#endif
+inline namespace RT_LANE_NAMESPACE {
 
 struct Xyz {
   D4 x, y, z;
@@ -385,7 +391,124 @@ RT_LANE_INLINE Xyz normalize(const Xyz& v) {
   return {v.x * scale, v.y * scale, v.z * scale};
 }
 
-}  // namespace avx2 or sse2
+}  // namespace RT_LANE_NAMESPACE
+
+#ifdef __AVX512F__
+inline namespace RT_LANE_NAMESPACE {
+
+// Eight double lanes in one zmm register (the AVX-512 build only) with D4's operations and the
+// same bits per lane; a comparison's result is a bit mask, one bit per lane.
+struct D8 {
+  __m512d v;  // D8{} is all zeros
+};
+struct M8 {
+  __mmask8 k;
+};
+using F8 = __m256;  // eight float32 lanes
+
+RT_LANE_INLINE void load(D8& out, const double* p) {
+  out.v = _mm512_loadu_pd(p);
+}
+RT_LANE_INLINE void store(double* p, const D8& v) {
+  _mm512_storeu_pd(p, v.v);
+}
+// From and to int64 masks (all ones or 0 per lane, as M4's memory layout).
+RT_LANE_INLINE void load(M8& out, const std::int64_t* p) {
+  const __m512i v = _mm512_loadu_si512(p);
+  out.k = _mm512_test_epi64_mask(v, v);
+}
+RT_LANE_INLINE void store(std::int64_t* p, const M8& m) {
+  _mm512_storeu_si512(p, _mm512_maskz_set1_epi64(m.k, -1));
+}
+
+#define RT_LANE_BINARY(op, intrinsic)                       \
+  RT_LANE_INLINE D8 operator op(const D8& a, const D8& b) { \
+    return {intrinsic(a.v, b.v)};                           \
+  }
+RT_LANE_BINARY(+, _mm512_add_pd)
+RT_LANE_BINARY(-, _mm512_sub_pd)
+RT_LANE_BINARY(*, _mm512_mul_pd)
+RT_LANE_BINARY(/, _mm512_div_pd)
+#undef RT_LANE_BINARY
+RT_LANE_INLINE D8 operator-(const D8& a) {
+  return {_mm512_xor_pd(a.v, _mm512_set1_pd(-0.0))};
+}
+
+// The predicates of D4's comparisons: ordered and quiet, != unordered; == is ~(!=).
+#define RT_LANE_COMPARE(op, predicate)                      \
+  RT_LANE_INLINE M8 operator op(const D8& a, const D8& b) { \
+    return {_mm512_cmp_pd_mask(a.v, b.v, predicate)};       \
+  }
+RT_LANE_COMPARE(<, _CMP_LT_OQ)
+RT_LANE_COMPARE(>, _CMP_GT_OQ)
+RT_LANE_COMPARE(>=, _CMP_GE_OQ)
+RT_LANE_COMPARE(!=, _CMP_NEQ_UQ)
+RT_LANE_COMPARE(==, _CMP_EQ_OQ)
+#undef RT_LANE_COMPARE
+
+RT_LANE_INLINE M8 operator&(const M8& a, const M8& b) {
+  return {static_cast<__mmask8>(a.k & b.k)};
+}
+RT_LANE_INLINE M8 operator|(const M8& a, const M8& b) {
+  return {static_cast<__mmask8>(a.k | b.k)};
+}
+RT_LANE_INLINE M8 operator~(const M8& a) {
+  return {static_cast<__mmask8>(~a.k)};
+}
+RT_LANE_INLINE bool any(const M8& m) {
+  return m.k != 0;
+}
+
+RT_LANE_INLINE D8 select(const M8& m, const D8& a, const D8& b) {
+  return {_mm512_mask_blend_pd(m.k, b.v, a.v)};
+}
+RT_LANE_INLINE D8 abs(const D8& v) {
+  return {_mm512_andnot_pd(_mm512_set1_pd(-0.0), v.v)};
+}
+// (The all-lanes masked forms: GCC 12's unmasked ones start from an "undefined" register that
+// -Wmaybe-uninitialized reports; a full mask compiles to the same instruction.)
+RT_LANE_INLINE D8 sqrt(const D8& v) {
+  return {_mm512_maskz_sqrt_pd(0xFF, v.v)};
+}
+RT_LANE_INLINE D8 max(const D8& a, const D8& b) {
+  return select(a < b, b, a);
+}
+RT_LANE_INLINE D8 clamp(const D8& v, const D8& lo, const D8& hi) {
+  return select(v < lo, lo, select(hi < v, hi, v));
+}
+RT_LANE_INLINE D8 round_to_integer(const D8& x) {
+  const D8 shift{_mm512_set1_pd(0x1.8p52)};
+  return (x + shift) - shift;
+}
+
+RT_LANE_INLINE D8 bit_and(const D8& a, const D8& b) {
+  return {_mm512_and_pd(a.v, b.v)};
+}
+RT_LANE_INLINE D8 bit_or(const D8& a, const D8& b) {
+  return {_mm512_or_pd(a.v, b.v)};
+}
+template <int bits>
+RT_LANE_INLINE D8 shift_left(const D8& a) {
+  return {_mm512_castsi512_pd(_mm512_slli_epi64(_mm512_castpd_si512(a.v), bits))};
+}
+template <int bits>
+RT_LANE_INLINE D8 shift_right(const D8& a) {
+  return {_mm512_castsi512_pd(_mm512_srli_epi64(_mm512_castpd_si512(a.v), bits))};
+}
+
+// A lane's entry of a four-entry table, as make_lookup and lookup for D4 (one vpermpd).
+struct Lookup8 {
+  __m512i index;  // the lane's slot, 0 .. 3
+};
+RT_LANE_INLINE Lookup8 make_lookup(const D8& slot) {
+  return {_mm512_cvttpd_epi64(slot.v)};
+}
+RT_LANE_INLINE D8 lookup(const double* table, const Lookup8& l) {
+  return {_mm512_maskz_permutexvar_pd(0xFF, l.index, _mm512_maskz_loadu_pd(0x0F, table))};
+}
+
+}  // namespace RT_LANE_NAMESPACE
+#endif
 
 #undef RT_LANE_INLINE
 

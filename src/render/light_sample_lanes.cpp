@@ -1,12 +1,14 @@
-// Built twice: as itself (baseline x86-64) and included by light_sample_lanes_avx2.cpp with
-// RT_LIGHT_SAMPLE_LANES_AVX2 and -mavx2. Only lane_math.h's and lane_libm.h's always-inlined
-// helpers are used, each in its build's inline namespace, so the AVX2 build emits no function
-// that a baseline file could link.
+// Built three times: as itself (baseline x86-64), included by light_sample_lanes_avx2.cpp with
+// RT_LIGHT_SAMPLE_LANES_AVX2 and -mavx2, and by light_sample_lanes_avx512.cpp with
+// RT_LIGHT_SAMPLE_LANES_AVX512 and -mavx512f -mavx512dq -mavx512vl. Only lane_math.h's and
+// lane_libm.h's always-inlined helpers are used, each in its build's inline namespace, so the
+// wider builds emit no function that a baseline file could link.
 
 #include "light_sample_lanes.h"
 
 #include <cmath>
 #include <numbers>
+#include <vector>
 
 #include "lane_libm.h"
 #include "lane_math.h"
@@ -14,7 +16,9 @@
 
 namespace rt::light_sample_lanes {
 
-#ifdef RT_LIGHT_SAMPLE_LANES_AVX2
+#if defined(RT_LIGHT_SAMPLE_LANES_AVX512)
+namespace avx512 {
+#elif defined(RT_LIGHT_SAMPLE_LANES_AVX2)
 namespace avx2 {
 #else
 namespace baseline {
@@ -25,151 +29,150 @@ using lm::D4;
 using lm::Wide;
 using lm::WideMask;
 
-// N groups of four lanes (lane_libm.h's Wide): the kernel's arithmetic is issued for all N
+// W = Wide<N, G>: N groups G of lanes (lane_libm.h). The kernel's arithmetic is issued for all N
 // groups together, so that their long chains of divisions and square roots overlap.
-template <int N>
+template <class W>
 struct Vec3W {
-  Wide<N> x, y, z;
+  W x, y, z;
 };
 
-template <int N>
-[[gnu::always_inline]] static inline Wide<N> at(const Lanes& v, int g) {
-  Wide<N> out;
-  for (int i = 0; i < N; ++i) lm::load(out.g[i], v.v + g + 4 * i);
+template <class W>
+[[gnu::always_inline]] static inline W at(const Lanes& v, int g) {
+  W out;
+  for (int i = 0; i < W::kGroups; ++i) lm::load(out.g[i], v.v + g + W::kGroupLanes * i);
   return out;
 }
-template <int N>
-[[gnu::always_inline]] static inline Vec3W<N> at(const Vec3& v, int g) {
-  return {at<N>(v.x, g), at<N>(v.y, g), at<N>(v.z, g)};
+template <class W>
+[[gnu::always_inline]] static inline Vec3W<W> at3(const Vec3& v, int g) {
+  return {at<W>(v.x, g), at<W>(v.y, g), at<W>(v.z, g)};
 }
-template <int N>
-[[gnu::always_inline]] static inline void put(Lanes& to, int g, const Wide<N>& v) {
-  for (int i = 0; i < N; ++i) lm::store(to.v + g + 4 * i, v.g[i]);
+template <class W>
+[[gnu::always_inline]] static inline void put(Lanes& to, int g, const W& v) {
+  for (int i = 0; i < W::kGroups; ++i) lm::store(to.v + g + W::kGroupLanes * i, v.g[i]);
 }
-template <int N>
-[[gnu::always_inline]] static inline void put(Vec3& to, int g, const Vec3W<N>& v) {
+template <class W>
+[[gnu::always_inline]] static inline void put(Vec3& to, int g, const Vec3W<W>& v) {
   put(to.x, g, v.x);
   put(to.y, g, v.y);
   put(to.z, g, v.z);
 }
-template <int N>
-[[gnu::always_inline]] static inline void put(std::int64_t* to, int g, const WideMask<N>& m) {
-  for (int i = 0; i < N; ++i) lm::store(to + g + 4 * i, m.g[i]);
+template <class W>
+[[gnu::always_inline]] static inline void put(std::int64_t* to, int g, const typename W::Mask& m) {
+  for (int i = 0; i < W::kGroups; ++i) lm::store(to + g + W::kGroupLanes * i, m.g[i]);
 }
-template <int N>
-[[gnu::always_inline]] static inline WideMask<N> mask_at(const std::int64_t* from, int g) {
-  WideMask<N> out;
-  for (int i = 0; i < N; ++i) lm::load(out.g[i], from + g + 4 * i);
+template <class W>
+[[gnu::always_inline]] static inline typename W::Mask mask_at(const std::int64_t* from, int g) {
+  typename W::Mask out;
+  for (int i = 0; i < W::kGroups; ++i) lm::load(out.g[i], from + g + W::kGroupLanes * i);
   return out;
 }
-template <int N>
-[[gnu::always_inline]] static inline Wide<N> splat(double x) {
-  return lm::Splat<Wide<N>>::value(x);
+template <class W>
+[[gnu::always_inline]] static inline W splat(double x) {
+  return lm::Splat<W>::value(x);
 }
-template <int N>
-[[gnu::always_inline]] static inline bool any(const WideMask<N>& m) {
+template <class M>
+[[gnu::always_inline]] static inline bool any(const M& m) {
   bool set = false;
-  for (int i = 0; i < N; ++i) set = set || lm::any(m.g[i]);
+  for (const auto& group : m.g) set = set || lm::any(group);
   return set;
 }
 
-// Where lanes g .. g + 4N - 1 read their triangle's inputs (Input's per-triangle fields): their
-// own lanes, or the entries of their slots.
-template <int N>
+// Where lanes g .. g + W::kLanes - 1 read their triangle's inputs (Input's per-triangle fields):
+// their own lanes, or the entries of their slots.
+template <class W>
 struct PerLane {
   PerLane(const Input&, int g) : first(g) {}
-  Wide<N> operator()(const Lanes& field) const { return at<N>(field, first); }
-  Vec3W<N> operator()(const Vec3& field) const { return at<N>(field, first); }
+  W operator()(const Lanes& field) const { return at<W>(field, first); }
+  Vec3W<W> operator()(const Vec3& field) const { return at3<W>(field, first); }
   int first;
 };
-template <int N>
+template <class W>
 struct BySlot {
   BySlot(const Input& in, int g) {
-    for (int i = 0; i < N; ++i) {
-      lm::D4 slot;
-      lm::load(slot, in.slot.v + g + 4 * i);
+    for (int i = 0; i < W::kGroups; ++i) {
+      typename W::Group slot;
+      lm::load(slot, in.slot.v + g + W::kGroupLanes * i);
       lookups[i] = lm::make_lookup(slot);
     }
   }
-  Wide<N> operator()(const Lanes& field) const {
-    Wide<N> v;
-    for (int i = 0; i < N; ++i) v.g[i] = lm::lookup(field.v, lookups[i]);
+  W operator()(const Lanes& field) const {
+    W v;
+    for (int i = 0; i < W::kGroups; ++i) v.g[i] = lm::lookup(field.v, lookups[i]);
     return v;
   }
-  Vec3W<N> operator()(const Vec3& field) const { return {(*this)(field.x), (*this)(field.y), (*this)(field.z)}; }
-  lm::Lookup lookups[N];
+  Vec3W<W> operator()(const Vec3& field) const { return {(*this)(field.x), (*this)(field.y), (*this)(field.z)}; }
+  decltype(lm::make_lookup(typename W::Group{})) lookups[W::kGroups];
 };
 
 // glm's dot, cross and normalize, with glm's order of operations (lane_math.h's Xyz).
-template <int N>
-[[gnu::always_inline]] static inline Wide<N> dot(const Vec3W<N>& a, const Vec3W<N>& b) {
+template <class W>
+[[gnu::always_inline]] static inline W dot(const Vec3W<W>& a, const Vec3W<W>& b) {
   return a.x * b.x + a.y * b.y + a.z * b.z;
 }
-template <int N>
-[[gnu::always_inline]] static inline Vec3W<N> cross(const Vec3W<N>& a, const Vec3W<N>& b) {
+template <class W>
+[[gnu::always_inline]] static inline Vec3W<W> cross(const Vec3W<W>& a, const Vec3W<W>& b) {
   return {a.y * b.z - b.y * a.z, a.z * b.x - b.z * a.x, a.x * b.y - b.x * a.y};
 }
-template <int N>
-[[gnu::always_inline]] static inline Vec3W<N> normalize(const Vec3W<N>& v) {
-  const Wide<N> scale = splat<N>(1.0) / lm::sqrt(dot(v, v));
+template <class W>
+[[gnu::always_inline]] static inline Vec3W<W> normalize(const Vec3W<W>& v) {
+  const W scale = splat<W>(1.0) / lm::sqrt(dot(v, v));
   return {v.x * scale, v.y * scale, v.z * scale};
 }
-template <int N>
-[[gnu::always_inline]] static inline Vec3W<N> minus(const Vec3W<N>& a, const Vec3W<N>& b) {
+template <class W>
+[[gnu::always_inline]] static inline Vec3W<W> minus(const Vec3W<W>& a, const Vec3W<W>& b) {
   return {a.x - b.x, a.y - b.y, a.z - b.z};
 }
 
 // a s + b t, component by component.
-template <int N>
-[[gnu::always_inline]] static inline Vec3W<N> combine(const Wide<N>& s, const Vec3W<N>& a, const Wide<N>& t,
-                                                      const Vec3W<N>& b) {
+template <class W>
+[[gnu::always_inline]] static inline Vec3W<W> combine(const W& s, const Vec3W<W>& a, const W& t, const Vec3W<W>& b) {
   return {s * a.x + t * b.x, s * a.y + t * b.y, s * a.z + t * b.z};
 }
 
 // SphericalTriangle::sample (sampling.cpp).
-template <int N, class Fetch>
-[[gnu::always_inline]] static inline Vec3W<N> arvo_direction(const Input& in, int g, const Fetch& fetch) {
-  const Wide<N> zero = splat<N>(0.0), one = splat<N>(1.0);
-  Wide<N> s, t;
-  lm::sincos(at<N>(in.angle, g), s, t);
-  const Wide<N> cos_alpha = fetch(in.cos_alpha), sin_alpha = fetch(in.sin_alpha);
-  const Wide<N> uu = t - cos_alpha, vv = s + sin_alpha * fetch(in.cos_c);
-  const Wide<N> denominator = (vv * s + uu * t) * sin_alpha;
-  const Wide<N> q = lm::select(denominator != zero,
-                               lm::clamp(((vv * t - uu * s) * cos_alpha - vv) / denominator, -one, one), one);
-  const Vec3W<N> b = fetch(in.b);
-  const Vec3W<N> c_prime = combine(q, fetch(in.a), lm::sqrt(lm::max(zero, one - q * q)), fetch(in.c_perp));
-  const Wide<N> cosine = dot(c_prime, b);
-  const Wide<N> z = one - at<N>(in.v, g) * (one - cosine);
-  const Vec3W<N> across = normalize(Vec3W<N>{c_prime.x - cosine * b.x, c_prime.y - cosine * b.y, c_prime.z - cosine * b.z});
+template <class W, class Fetch>
+[[gnu::always_inline]] static inline Vec3W<W> arvo_direction(const Input& in, int g, const Fetch& fetch) {
+  const W zero = splat<W>(0.0), one = splat<W>(1.0);
+  W s, t;
+  lm::sincos(at<W>(in.angle, g), s, t);
+  const W cos_alpha = fetch(in.cos_alpha), sin_alpha = fetch(in.sin_alpha);
+  const W uu = t - cos_alpha, vv = s + sin_alpha * fetch(in.cos_c);
+  const W denominator = (vv * s + uu * t) * sin_alpha;
+  const W q = lm::select(denominator != zero, lm::clamp(((vv * t - uu * s) * cos_alpha - vv) / denominator, -one, one), one);
+  const Vec3W<W> b = fetch(in.b);
+  const Vec3W<W> c_prime = combine(q, fetch(in.a), lm::sqrt(lm::max(zero, one - q * q)), fetch(in.c_perp));
+  const W cosine = dot(c_prime, b);
+  const W z = one - at<W>(in.v, g) * (one - cosine);
+  const Vec3W<W> across = normalize(Vec3W<W>{c_prime.x - cosine * b.x, c_prime.y - cosine * b.y, c_prime.z - cosine * b.z});
   return normalize(combine(z, b, lm::sqrt(lm::max(zero, one - z * z)), across));
 }
 
-// Lanes g .. g + 4N - 1 of the kernel.
-template <int N, template <int> class Fetch>
+// Lanes g .. g + W::kLanes - 1 of the kernel.
+template <class W, template <class> class Fetch>
 [[gnu::always_inline]] static inline void sample_groups(const Input& in, int g, Output& out) {
-  const Fetch<N> fetch(in, g);
-  const Wide<N> zero = splat<N>(0.0), one = splat<N>(1.0);
-  const Vec3W<N> point{splat<N>(in.point[0]), splat<N>(in.point[1]), splat<N>(in.point[2])};
-  const Vec3W<N> p0 = fetch(in.p0), p1 = fetch(in.p1), p2 = fetch(in.p2);
-  const WideMask<N> by_solid_angle = mask_at<N>(in.by_solid_angle, g);
-  const WideMask<N> all = zero == zero;
+  using Mask = typename W::Mask;
+  const Fetch<W> fetch(in, g);
+  const W zero = splat<W>(0.0), one = splat<W>(1.0);
+  const Vec3W<W> point{splat<W>(in.point[0]), splat<W>(in.point[1]), splat<W>(in.point[2])};
+  const Vec3W<W> p0 = fetch(in.p0), p1 = fetch(in.p1), p2 = fetch(in.p2);
+  const Mask by_solid_angle = mask_at<W>(in.by_solid_angle, g);
+  const Mask all = zero == zero;
 
   // Where sampled by area, sample_triangle_uniform's barycentrics; elsewhere barycentrics_along(
   // point, w, p0, p1, p2) for the warped direction w. What no lane of the groups reads is not
   // computed: the divider is this kernel's bottleneck, and skipping changes no lane's bits.
-  Wide<N> b1 = at<N>(in.b1, g), b2 = at<N>(in.b2, g);
-  WideMask<N> valid = all;
+  W b1 = at<W>(in.b1, g), b2 = at<W>(in.b2, g);
+  Mask valid = all;
   if (any(by_solid_angle)) {
-    const Vec3W<N> w = arvo_direction<N>(in, g, fetch);
-    const Vec3W<N> e1 = minus(p1, p0), e2 = minus(p2, p0);
-    const Vec3W<N> pv = cross(w, e2);
-    const Wide<N> determinant = dot(e1, pv);
-    const Vec3W<N> tv = minus(point, p0);
-    Wide<N> along1 = lm::clamp(dot(tv, pv) / determinant, zero, one);
-    Wide<N> along2 = lm::clamp(dot(w, cross(tv, e1)) / determinant, zero, one);
-    const Wide<N> sum = along1 + along2;
-    const WideMask<N> over = sum > one;
+    const Vec3W<W> w = arvo_direction<W>(in, g, fetch);
+    const Vec3W<W> e1 = minus(p1, p0), e2 = minus(p2, p0);
+    const Vec3W<W> pv = cross(w, e2);
+    const W determinant = dot(e1, pv);
+    const Vec3W<W> tv = minus(point, p0);
+    W along1 = lm::clamp(dot(tv, pv) / determinant, zero, one);
+    W along2 = lm::clamp(dot(w, cross(tv, e1)) / determinant, zero, one);
+    const W sum = along1 + along2;
+    const Mask over = sum > one;
     if (any(over)) {  // rare: rounding put the point past the far side
       along1 = lm::select(over, along1 / sum, along1);
       along2 = lm::select(over, along2 / sum, along2);
@@ -183,39 +186,37 @@ template <int N, template <int> class Fetch>
   put(out.b2, g, b2);
 
   // make_surface_point.
-  const Wide<N> w0 = one - b1 - b2;
-  const Vec3W<N> p{w0 * p0.x + b1 * p1.x + b2 * p2.x, w0 * p0.y + b1 * p1.y + b2 * p2.y,
-                   w0 * p0.z + b1 * p1.z + b2 * p2.z};
+  const W w0 = one - b1 - b2;
+  const Vec3W<W> p{w0 * p0.x + b1 * p1.x + b2 * p2.x, w0 * p0.y + b1 * p1.y + b2 * p2.y, w0 * p0.z + b1 * p1.z + b2 * p2.z};
   put(out.point, g, p);
-  const Wide<N> largest = lm::max(lm::max(lm::abs(p.x), lm::abs(p.y)), lm::abs(p.z));
+  const W largest = lm::max(lm::max(lm::abs(p.x), lm::abs(p.y)), lm::abs(p.z));
   put(out.error_bound, g,
-      splat<N>(ray_offset_detail::kScaledRoundoff) * (splat<N>(std::sqrt(3.0)) * largest + fetch(in.edge_term)));
+      splat<W>(ray_offset_detail::kScaledRoundoff) * (splat<W>(std::sqrt(3.0)) * largest + fetch(in.edge_term)));
 
   // The unit direction and distance from the shading point (EmitterSampler::sample).
-  const Vec3W<N> offset = minus(p, point);
-  const Wide<N> distance = lm::sqrt(dot(offset, offset));
+  const Vec3W<W> offset = minus(p, point);
+  const W distance = lm::sqrt(dot(offset, offset));
   valid = valid & (distance > zero);
   put(out.distance, g, distance);
-  const Vec3W<N> direction{offset.x / distance, offset.y / distance, offset.z / distance};
+  const Vec3W<W> direction{offset.x / distance, offset.y / distance, offset.z / distance};
   put(out.direction, g, direction);
-  put(out.valid, g, valid);
+  put<W>(out.valid, g, valid);
 
   // EmitterSampler::weigh: the solid-angle density by the view's value, or by area probability /
   // area * r^2 / cos(theta'); zero where the triangle's back faces the point.
-  const Vec3W<N> normal = fetch(in.normal);
+  const Vec3W<W> normal = fetch(in.normal);
   put(out.normal, g, normal);
-  const Wide<N> cos_emitter = -dot(normal, direction);
-  const WideMask<N> front = cos_emitter > zero;
-  const Wide<N> by_area = any(~by_solid_angle)
-                             ? (fetch(in.area) * cos_emitter) / ((fetch(in.probability) * distance) * distance)
-                             : zero;
-  const Vec3W<N> solid = fetch(in.solid_radiance);
-  const auto radiance = [&](const Wide<N>& solid_radiance, double emission) {
-    return lm::select(front, lm::select(by_solid_angle, solid_radiance, splat<N>(emission) * by_area), zero);
+  const W cos_emitter = -dot(normal, direction);
+  const Mask front = cos_emitter > zero;
+  const W by_area =
+      any(~by_solid_angle) ? (fetch(in.area) * cos_emitter) / ((fetch(in.probability) * distance) * distance) : zero;
+  const Vec3W<W> solid = fetch(in.solid_radiance);
+  const auto radiance = [&](const W& solid_radiance, double emission) {
+    return lm::select(front, lm::select(by_solid_angle, solid_radiance, splat<W>(emission) * by_area), zero);
   };
   put(out.radiance_over_pdf, g,
-      Vec3W<N>{radiance(solid.x, in.emission[0]), radiance(solid.y, in.emission[1]), radiance(solid.z, in.emission[2])});
-  put(out.front, g, front);
+      Vec3W<W>{radiance(solid.x, in.emission[0]), radiance(solid.y, in.emission[1]), radiance(solid.z, in.emission[2])});
+  put<W>(out.front, g, front);
 }
 
 // EmitterSampler::choose over lanes, with choose_many's operations: the index counts the cdf's
@@ -243,30 +244,39 @@ void choose(Input& in, int count, std::uint32_t* triangle) {
   }
 }
 
-// The groups of four in use, as many at a time as the build's registers hold (see Wide).
-void sample(const Input& in, int count, Output& out) {
-#ifdef RT_LIGHT_SAMPLE_LANES_AVX2
-  constexpr int kWidest = 4;
-#else
-  constexpr int kWidest = 2;
-#endif
+// The lanes in use, as many groups at a time as the build's registers hold: 16 lanes in two zmm
+// registers (AVX-512), in four ymm (AVX2) or in four pairs of xmm (SSE2: eight lanes, more would
+// spill); then what is left by smaller steps, the last group of four in full (Input's lanes past
+// `count` are read but their results are not).
+template <template <class> class Fetch>
+static void sample_by(const Input& in, int count, Output& out) {
   int g = 0;
-  if (in.slots == 0) {
-    for (; g + 4 * kWidest <= count; g += 4 * kWidest) sample_groups<kWidest, PerLane>(in, g, out);
-    for (; g < count; g += 4) sample_groups<1, PerLane>(in, g, out);
-  } else {
-    for (; g + 4 * kWidest <= count; g += 4 * kWidest) sample_groups<kWidest, BySlot>(in, g, out);
-    for (; g < count; g += 4) sample_groups<1, BySlot>(in, g, out);
-  }
+#if defined(RT_LIGHT_SAMPLE_LANES_AVX512)
+  for (; g + 16 <= count; g += 16) sample_groups<Wide<2, lm::D8>, Fetch>(in, g, out);
+  for (; g + 8 <= count; g += 8) sample_groups<Wide<1, lm::D8>, Fetch>(in, g, out);
+#elif defined(RT_LIGHT_SAMPLE_LANES_AVX2)
+  for (; g + 16 <= count; g += 16) sample_groups<Wide<4>, Fetch>(in, g, out);
+#else
+  for (; g + 8 <= count; g += 8) sample_groups<Wide<2>, Fetch>(in, g, out);
+#endif
+  for (; g < count; g += 4) sample_groups<Wide<1>, Fetch>(in, g, out);
+}
+
+void sample(const Input& in, int count, Output& out) {
+  if (in.slots == 0)
+    sample_by<PerLane>(in, count, out);
+  else
+    sample_by<BySlot>(in, count, out);
 }
 
 // pow(x[k], y) for the 16 lanes: by binary powering where y is a whole number up to
 // lm::kMaxIntegerPower, else by lm::pow_many; four groups of four at a time with AVX2 (one
-// register each), two with SSE2 (two registers each; four would spill), to overlap the chains.
+// register each; the AVX-512 build too), two with SSE2 (two registers each; four would spill), to
+// overlap the chains.
 void powers(const double* x, double y, double* out) {
   static_assert(kLanes == 16);
   const bool whole = y >= 0.0 && y <= lm::kMaxIntegerPower && y == std::floor(y);
-#ifdef RT_LIGHT_SAMPLE_LANES_AVX2
+#if defined(RT_LIGHT_SAMPLE_LANES_AVX2) || defined(RT_LIGHT_SAMPLE_LANES_AVX512)
   if (whole)
     lm::pow_integer_many<4>(x, y, out);
   else
@@ -459,9 +469,18 @@ void emit(const Shading& shading, const Chunk& chunk, const FacingOutput& facing
   }
 }
 
-}  // namespace (baseline or avx2)
+}  // namespace (baseline, avx2 or avx512)
 
-#ifdef RT_LIGHT_SAMPLE_LANES_AVX2
+#if defined(RT_LIGHT_SAMPLE_LANES_AVX512)
+const Kernels* avx512_kernels() {
+  static const Kernels kernels{&avx512::choose, &avx512::sample, &avx512::powers, &avx512::spherical,
+                               &avx512::facing, &avx512::emit, &avx512::set_origins};
+  __builtin_cpu_init();  // idempotent; needed when called before the constructors have run
+  const bool has = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") &&
+                   __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx2");
+  return has ? &kernels : nullptr;
+}
+#elif defined(RT_LIGHT_SAMPLE_LANES_AVX2)
 const Kernels* avx2_kernels() {
   static const Kernels kernels{&avx2::choose, &avx2::sample, &avx2::powers, &avx2::spherical,
                                &avx2::facing, &avx2::emit, &avx2::set_origins};
@@ -475,8 +494,15 @@ const Kernels& baseline_kernels() {
   return kernels;
 }
 
+std::vector<const Kernels*> wider_kernels() {
+  std::vector<const Kernels*> builds;
+  for (const Kernels* build : {avx2_kernels(), avx512_kernels()})
+    if (build) builds.push_back(build);
+  return builds;
+}
+
 const Kernels& best_kernels() {
-  static const Kernels& best = avx2_kernels() ? *avx2_kernels() : baseline_kernels();
+  static const Kernels& best = avx512_kernels() ? *avx512_kernels() : avx2_kernels() ? *avx2_kernels() : baseline_kernels();
   return best;
 }
 #endif

@@ -4,12 +4,14 @@
 // spherical warp (its sine and cosine from lane_libm.h, as SphericalTriangle::sample takes them),
 // the barycentrics where the direction meets the triangle, the sample's surface point, direction,
 // distance and emitted radiance over pdf; then the Blinn-Phong factors, the terms and the shadow
-// rays. World space, double (the rays float32). Built twice, like batch_lanes.cpp: baseline x86-64
-// and AVX2 (light_sample_lanes_avx2.cpp), chosen once by what the CPU has; each lane takes the
-// scalar code's IEEE operations in the same order, so both builds give EmitterSampler::sample's,
-// shade.cpp's and shadow_ray_to_sample's bits.
+// rays. World space, double (the rays float32). Built three times: baseline x86-64, AVX2
+// (light_sample_lanes_avx2.cpp, like batch_lanes.cpp) and AVX-512 (light_sample_lanes_avx512.cpp,
+// eight lanes a register in the sample kernel), chosen once by what the CPU has; each lane takes
+// the scalar code's IEEE operations in the same order, so every build gives
+// EmitterSampler::sample's, shade.cpp's and shadow_ray_to_sample's bits.
 
 #include <cstdint>
+#include <vector>
 
 #include "batch_shade.h"
 
@@ -148,8 +150,11 @@ struct Kernels {
 };
 
 const Kernels& baseline_kernels();
-const Kernels* avx2_kernels();  // nullptr when the CPU lacks AVX2
-// The AVX2 build where the CPU has it, else the baseline.
+const Kernels* avx2_kernels();    // nullptr when the CPU lacks AVX2
+const Kernels* avx512_kernels();  // nullptr when the CPU lacks AVX-512 F, DQ or VL
+// The builds beyond the baseline that this CPU can run (for tests that compare builds).
+std::vector<const Kernels*> wider_kernels();
+// The widest build the CPU has: AVX-512, else AVX2, else the baseline.
 const Kernels& best_kernels();
 
 }  // namespace rt::light_sample_lanes
