@@ -496,6 +496,33 @@ RT_LANE_INLINE D8 shift_right(const D8& a) {
   return {_mm512_castsi512_pd(_mm512_srli_epi64(_mm512_castpd_si512(a.v), bits))};
 }
 
+// static_cast<float> and back, per lane (round to nearest).
+RT_LANE_INLINE F8 to_float(const D8& v) {
+  return _mm512_maskz_cvtpd_ps(0xFF, v.v);
+}
+RT_LANE_INLINE D8 to_double(const F8& v) {
+  return {_mm512_maskz_cvtps_pd(0xFF, v)};
+}
+RT_LANE_INLINE void store(float* p, const F8& v) {
+  _mm256_storeu_ps(p, v);
+}
+
+// round_away (D4's, below) for eight lanes: the step on the float's bits is +1 where rounding
+// moved p against a positive `away` (up), -1 where against a negative one (down), negated where
+// the float is negative ((s ^ n) - n, n all ones there).
+RT_LANE_INLINE F8 round_away(const D8& p, const D8& away) {
+  const F8 f = to_float(p);
+  const D8 back = to_double(f);
+  const D8 zero{};
+  const M8 up = (away > zero) & (back < p);
+  const M8 down = (zero > away) & (p < back);
+  const __m256i bits = _mm256_castps_si256(f);
+  const __m256i negative = _mm256_srai_epi32(bits, 31);
+  const __m256i direction = _mm256_mask_blend_epi32(up.k, _mm256_set1_epi32(-1), _mm256_set1_epi32(1));
+  const __m256i step = _mm256_sub_epi32(_mm256_xor_si256(direction, negative), negative);
+  return _mm256_castsi256_ps(_mm256_mask_add_epi32(bits, (up | down).k, bits, step));
+}
+
 // A lane's entry of a four-entry table, as make_lookup and lookup for D4 (one vpermpd).
 struct Lookup8 {
   __m512i index;  // the lane's slot, 0 .. 3

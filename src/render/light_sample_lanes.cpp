@@ -393,80 +393,88 @@ void set_origins(Shading& shading) {
 
 // The term, then shadow_ray_to_sample: the origin on the side the direction leaves by, the target
 // offset off the emitter towards it (offset_ray_origin), the float32 direction between them and
-// the shortened tfar, each with the scalar code's operations.
-void emit(const Shading& shading, const Chunk& chunk, const FacingOutput& facing, bool lit, EmitOutput& out) {
-  using lm::Xyz;
+// the shortened tfar, each with the scalar code's operations; lanes g .. g + G's lanes - 1.
+template <class G>
+[[gnu::always_inline]] static inline void emit_group(const Shading& shading, const Chunk& chunk,
+                                                     const FacingOutput& facing, bool lit, int g, EmitOutput& out) {
   using ray_offset_detail::kScaledRoundoff;
-  const D4 zero{}, one = lm::broadcast(1.0);
-  const auto splat3 = [](const double (&v)[3]) { return Xyz{lm::broadcast(v[0]), lm::broadcast(v[1]), lm::broadcast(v[2])}; };
-  const Xyz diffuse = splat3(shading.diffuse), specular = splat3(shading.specular), normal = splat3(shading.geometric_normal);
-  const D4 scale = lm::broadcast(shading.scale);
-  const lm::M4 none = zero != zero, all = ~none;
-  const lm::M4 lit_mask = lit ? all : none;
-  // The two origins, as float32 and as double.
-  lm::F4 origin_f[2][3];
-  for (int side = 0; side < 2; ++side)
-    for (int axis = 0; axis < 3; ++axis) origin_f[side][axis] = _mm_set1_ps(shading.origin[side][axis]);
-  const int used = groups_in_use(chunk);
-  for (int g = 0; g < used; g += 4) {
-    Xyz direction, radiance, light_point, light_normal;
-    lm::load(direction, chunk.out.direction, g);
-    lm::load(radiance, chunk.out.radiance_over_pdf, g);
-    lm::load(light_point, chunk.out.point, g);
-    lm::load(light_normal, chunk.out.normal, g);
-    D4 n_dot_l, power, error_bound;
-    lm::load(n_dot_l, facing.n_dot_l.v + g);
-    lm::load(power, facing.power.v + g);
-    lm::load(error_bound, chunk.out.error_bound.v + g);
+  using V = Vec3W<G>;
+  const auto splat = [](double x) { return lm::Splat<G>::value(x); };
+  const auto splat3 = [&](const double (&v)[3]) { return V{splat(v[0]), splat(v[1]), splat(v[2])}; };
+  const auto load3 = [g](const Vec3& v) {
+    V r;
+    lm::load(r.x, v.x.v + g);
+    lm::load(r.y, v.y.v + g);
+    lm::load(r.z, v.z.v + g);
+    return r;
+  };
+  const auto load1 = [g](const Lanes& v) {
+    G r;
+    lm::load(r, v.v + g);
+    return r;
+  };
+  const G zero{}, one = splat(1.0);
+  const V diffuse = splat3(shading.diffuse), specular = splat3(shading.specular), normal = splat3(shading.geometric_normal);
+  const V direction = load3(chunk.out.direction), radiance = load3(chunk.out.radiance_over_pdf);
+  const V light_point = load3(chunk.out.point), light_normal = load3(chunk.out.normal);
+  const G n_dot_l = load1(facing.n_dot_l), power = load1(facing.power), error_bound = load1(chunk.out.error_bound);
 
-    // term = radiance (C_d n.l + C_s power) / (pi N), or (0, 0, 0).
-    const lm::M4 counted = lit_mask & (n_dot_l > zero);
-    const auto term = [&](const D4& r, const D4& d, const D4& s) {
-      const D4 highlight = shading.highlights ? s * power : zero;
-      return lm::select(counted, (r * (d * n_dot_l + highlight)) * scale, zero);
-    };
-    lm::store(out.term, g, Xyz{term(radiance.x, diffuse.x, specular.x), term(radiance.y, diffuse.y, specular.y),
-                               term(radiance.z, diffuse.z, specular.z)});
+  // term = radiance (C_d n.l + C_s power) / (pi N), or (0, 0, 0).
+  const auto counted = (lit ? zero == zero : zero != zero) & (n_dot_l > zero);
+  const G scale = splat(shading.scale);
+  const auto term = [&](const G& r, const G& d, const G& sp) {
+    const G highlight = shading.highlights ? sp * power : zero;
+    return lm::select(counted, (r * (d * n_dot_l + highlight)) * scale, zero);
+  };
+  const V terms{term(radiance.x, diffuse.x, specular.x), term(radiance.y, diffuse.y, specular.y),
+                term(radiance.z, diffuse.z, specular.z)};
+  lm::store(out.term.x.v + g, terms.x);
+  lm::store(out.term.y.v + g, terms.y);
+  lm::store(out.term.z.v + g, terms.z);
 
-    // The origin leaving on the side of the direction (SideOrigins::leaving_along).
-    const __m128i leaves_front = lm::narrow(lm::dot(normal, direction) >= zero);
-    lm::F4 origin[3];
-    for (int axis = 0; axis < 3; ++axis)
-      origin[axis] = _mm_castsi128_ps(_mm_or_si128(_mm_and_si128(leaves_front, _mm_castps_si128(origin_f[0][axis])),
-                                                   _mm_andnot_si128(leaves_front, _mm_castps_si128(origin_f[1][axis]))));
-    const Xyz o{lm::to_double(origin[0]), lm::to_double(origin[1]), lm::to_double(origin[2])};
-    // The target: offset_ray_origin(light point, origin - light point).
-    const Xyz back{o.x - light_point.x, o.y - light_point.y, o.z - light_point.z};
-    const D4 sign = lm::select(lm::dot(light_normal, back) >= zero, one, -one);  // n or -n, exactly
-    const D4 sx = sign * light_normal.x, sy = sign * light_normal.y, sz = sign * light_normal.z;
-    lm::F4 target[3];
-    if (shading.fixed_offset) {
-      const D4 epsilon = lm::broadcast(shading.epsilon);
-      target[0] = lm::to_float(light_point.x + epsilon * sx);
-      target[1] = lm::to_float(light_point.y + epsilon * sy);
-      target[2] = lm::to_float(light_point.z + epsilon * sz);
-    } else {
-      target[0] = lm::round_away(light_point.x + error_bound * sx, sx);
-      target[1] = lm::round_away(light_point.y + error_bound * sy, sy);
-      target[2] = lm::round_away(light_point.z + error_bound * sz, sz);
-    }
-    const Xyz t{lm::to_double(target[0]), lm::to_double(target[1]), lm::to_double(target[2])};
-    const Xyz span{t.x - o.x, t.y - o.y, t.z - o.z};
-    const D4 length = lm::sqrt(lm::dot(span, span));
-    const lm::M4 apart = length > zero;
-    const D4 tfar = shading.fixed_offset
-                        ? length - lm::broadcast(shading.epsilon)
-                        : length - lm::broadcast(kScaledRoundoff) *
-                                       (lm::broadcast(std::sqrt(3.0)) * lm::max(lm::max(lm::abs(t.x), lm::abs(t.y)), lm::abs(t.z)) +
-                                        lm::broadcast(4.0) * length);
-    lm::store(out.origin.x + g, origin[0]);
-    lm::store(out.origin.y + g, origin[1]);
-    lm::store(out.origin.z + g, origin[2]);
-    lm::store(out.direction.x + g, lm::to_float(lm::select(apart, span.x / length, direction.x)));
-    lm::store(out.direction.y + g, lm::to_float(lm::select(apart, span.y / length, direction.y)));
-    lm::store(out.direction.z + g, lm::to_float(lm::select(apart, span.z / length, direction.z)));
-    lm::store(out.tfar + g, lm::to_float(lm::select(apart, tfar, zero)));
+  // The origin leaving on the side of the direction (SideOrigins::leaving_along), chosen as double:
+  // float32 values, exactly.
+  const auto leaves_front = dot(normal, direction) >= zero;
+  const V o{lm::select(leaves_front, splat(shading.origin[0][0]), splat(shading.origin[1][0])),
+            lm::select(leaves_front, splat(shading.origin[0][1]), splat(shading.origin[1][1])),
+            lm::select(leaves_front, splat(shading.origin[0][2]), splat(shading.origin[1][2]))};
+  // The target: offset_ray_origin(light point, origin - light point).
+  const V back = minus(o, light_point);
+  const G sign = lm::select(dot(light_normal, back) >= zero, one, -one);  // n or -n, exactly
+  const G sx = sign * light_normal.x, sy = sign * light_normal.y, sz = sign * light_normal.z;
+  V t;
+  if (shading.fixed_offset) {
+    const G epsilon = splat(shading.epsilon);
+    t = {lm::to_double(lm::to_float(light_point.x + epsilon * sx)), lm::to_double(lm::to_float(light_point.y + epsilon * sy)),
+         lm::to_double(lm::to_float(light_point.z + epsilon * sz))};
+  } else {
+    t = {lm::to_double(lm::round_away(light_point.x + error_bound * sx, sx)),
+         lm::to_double(lm::round_away(light_point.y + error_bound * sy, sy)),
+         lm::to_double(lm::round_away(light_point.z + error_bound * sz, sz))};
   }
+  const V span = minus(t, o);
+  const G length = lm::sqrt(dot(span, span));
+  const auto apart = length > zero;
+  const G tfar = shading.fixed_offset
+                     ? length - splat(shading.epsilon)
+                     : length - splat(kScaledRoundoff) * (splat(std::sqrt(3.0)) * lm::max(lm::max(lm::abs(t.x), lm::abs(t.y)), lm::abs(t.z)) +
+                                                          splat(4.0) * length);
+  lm::store(out.origin.x + g, lm::to_float(o.x));
+  lm::store(out.origin.y + g, lm::to_float(o.y));
+  lm::store(out.origin.z + g, lm::to_float(o.z));
+  lm::store(out.direction.x + g, lm::to_float(lm::select(apart, span.x / length, direction.x)));
+  lm::store(out.direction.y + g, lm::to_float(lm::select(apart, span.y / length, direction.y)));
+  lm::store(out.direction.z + g, lm::to_float(lm::select(apart, span.z / length, direction.z)));
+  lm::store(out.tfar + g, lm::to_float(lm::select(apart, tfar, zero)));
+}
+
+void emit(const Shading& shading, const Chunk& chunk, const FacingOutput& facing, bool lit, EmitOutput& out) {
+  const int used = groups_in_use(chunk);
+  int g = 0;
+#ifdef RT_LIGHT_SAMPLE_LANES_AVX512
+  for (; g + 8 <= used; g += 8) emit_group<lm::D8>(shading, chunk, facing, lit, g, out);
+#endif
+  for (; g < used; g += 4) emit_group<D4>(shading, chunk, facing, lit, g, out);
 }
 
 }  // namespace (baseline, avx2 or avx512)
