@@ -370,40 +370,41 @@ RT_LANE_INLINE V pow_positive(const V& x, const V& y, M& outside) {
   return select(z_total < S::value(-1080.0), zero, result);
 }
 
-// out[i] = std::pow(x[i], y) for i < 4 N, within 1 ulp of glibc's (asserted in
+// out[i] = std::pow(x[i], y) for i < N times G's lanes, within 1 ulp of glibc's (asserted in
 // tests/test_area_lights.cpp): pow_positive, with y = 0 giving 1 and x = +0, y > 0 giving +0 as
 // there; lanes outside pow_positive's domain (negative or subnormal x, -0, infinities, NaN, huge
 // y, overflow) take glibc's std::pow.
-template <int N>
+template <int N, class G = D4>
 RT_LANE_INLINE void pow_many(const double* x, double y, double* out) {
-  Wide<N> xs, ys;
+  using W = Wide<N, G>;
+  W xs, ys;
   for (int i = 0; i < N; ++i) {
-    load(xs.g[i], x + 4 * i);
-    ys.g[i] = broadcast(y);
+    load(xs.g[i], x + W::kGroupLanes * i);
+    ys.g[i] = Splat<G>::value(y);
   }
-  WideMask<N> outside;
-  const Wide<N> result = pow_positive(xs, ys, outside);
-  const D4 zero{}, one = broadcast(1.0);
-  std::int64_t fallback[4 * N];
+  typename W::Mask outside;
+  const W result = pow_positive(xs, ys, outside);
+  const G zero{}, one = Splat<G>::value(1.0);
+  std::int64_t fallback[W::kLanes];
   bool any_fallback = false;
   for (int i = 0; i < N; ++i) {
     // x is +0 (not -0: +0 | 1.0 is 1.0, -0 | 1.0 is -1.0) and y > 0; or y is 0.
-    const M4 zero_result = (xs.g[i] == zero) & (bit_or(xs.g[i], one) == one) & (ys.g[i] > zero);
-    const M4 unit_result = ys.g[i] == zero;
-    store(out + 4 * i, select(unit_result, one, select(zero_result, zero, result.g[i])));
-    const M4 glibc = outside.g[i] & ~(zero_result | unit_result);
-    store(fallback + 4 * i, glibc);
+    const MaskOf<G> zero_result = (xs.g[i] == zero) & (bit_or(xs.g[i], one) == one) & (ys.g[i] > zero);
+    const MaskOf<G> unit_result = ys.g[i] == zero;
+    store(out + W::kGroupLanes * i, select(unit_result, one, select(zero_result, zero, result.g[i])));
+    const MaskOf<G> glibc = outside.g[i] & ~(zero_result | unit_result);
+    store(fallback + W::kGroupLanes * i, glibc);
     any_fallback = any_fallback || any(glibc);
   }
   if (any_fallback)
-    for (int i = 0; i < 4 * N; ++i)
+    for (int i = 0; i < W::kLanes; ++i)
       if (fallback[i]) out[i] = std::pow(x[i], y);
 }
 
 // The largest exponent pow_integer_many takes: its relative error grows with n (see there).
 constexpr double kMaxIntegerPower = 1024.0;
 
-// out[i] = x[i]^n for i < 4 N, n an integer in [0, kMaxIntegerPower], by binary powering: x, x^2,
+// out[i] = x[i]^n for i < N times G's lanes, n an integer in [0, kMaxIntegerPower], by binary powering: x, x^2,
 // x^4, ... by squaring, multiplied into the result where n has a bit, low bits first (x^40:
 // five squarings and one product). At most 2 log2(n) roundings, each compounding the ones
 // before it: relative error below (n - 1) 2^-53 + O(2^-106) against the exact power (Higham,
@@ -411,20 +412,21 @@ constexpr double kMaxIntegerPower = 1024.0;
 // 1024, where the result is normal; an underflowing result is off by less than 2^-1022. Used for
 // integer shininess (the usual case), where it replaces pow_many's 250-cycle chain by a handful
 // of products. x^0 is 1 and 0^n is 0, as pow gives.
-template <int N>
+template <int N, class G = D4>
 RT_LANE_INLINE void pow_integer_many(const double* x, double n, double* out) {
+  using W = Wide<N, G>;
   auto remaining = static_cast<std::uint32_t>(n);
-  Wide<N> base, result;
+  W base, result;
   for (int i = 0; i < N; ++i) {
-    load(base.g[i], x + 4 * i);
-    result.g[i] = broadcast(1.0);
+    load(base.g[i], x + W::kGroupLanes * i);
+    result.g[i] = Splat<G>::value(1.0);
   }
   while (remaining != 0) {
     if (remaining & 1u) result = result * base;  // the first time 1 * base: base exactly
     remaining >>= 1;
     if (remaining != 0) base = base * base;
   }
-  for (int i = 0; i < N; ++i) store(out + 4 * i, result.g[i]);
+  for (int i = 0; i < N; ++i) store(out + W::kGroupLanes * i, result.g[i]);
 }
 
 }  // namespace RT_LANE_NAMESPACE

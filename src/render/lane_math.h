@@ -397,7 +397,9 @@ RT_LANE_INLINE Xyz normalize(const Xyz& v) {
 inline namespace RT_LANE_NAMESPACE {
 
 // Eight double lanes in one zmm register (the AVX-512 build only) with D4's operations and the
-// same bits per lane; a comparison's result is a bit mask, one bit per lane.
+// same bits per lane; a comparison's result is a bit mask, one bit per lane. (Some operations use
+// the all-lanes masked form of an intrinsic: GCC 12's unmasked one starts from an "undefined"
+// register that -Wmaybe-uninitialized reports; a full mask compiles to the same instruction.)
 struct D8 {
   __m512d v;  // D8{} is all zeros
 };
@@ -465,8 +467,6 @@ RT_LANE_INLINE D8 select(const M8& m, const D8& a, const D8& b) {
 RT_LANE_INLINE D8 abs(const D8& v) {
   return {_mm512_andnot_pd(_mm512_set1_pd(-0.0), v.v)};
 }
-// (The all-lanes masked forms: GCC 12's unmasked ones start from an "undefined" register that
-// -Wmaybe-uninitialized reports; a full mask compiles to the same instruction.)
 RT_LANE_INLINE D8 sqrt(const D8& v) {
   return {_mm512_maskz_sqrt_pd(0xFF, v.v)};
 }
@@ -489,11 +489,11 @@ RT_LANE_INLINE D8 bit_or(const D8& a, const D8& b) {
 }
 template <int bits>
 RT_LANE_INLINE D8 shift_left(const D8& a) {
-  return {_mm512_castsi512_pd(_mm512_slli_epi64(_mm512_castpd_si512(a.v), bits))};
+  return {_mm512_castsi512_pd(_mm512_maskz_slli_epi64(0xFF, _mm512_castpd_si512(a.v), bits))};
 }
 template <int bits>
 RT_LANE_INLINE D8 shift_right(const D8& a) {
-  return {_mm512_castsi512_pd(_mm512_srli_epi64(_mm512_castpd_si512(a.v), bits))};
+  return {_mm512_castsi512_pd(_mm512_maskz_srli_epi64(0xFF, _mm512_castpd_si512(a.v), bits))};
 }
 
 // static_cast<float> and back, per lane (round to nearest).

@@ -221,27 +221,36 @@ template <class W, template <class> class Fetch>
 
 // EmitterSampler::choose over lanes, with choose_many's operations: the index counts the cdf's
 // upper ends at or below uy, clamped to the last slot; v = (uy - low) / (high - low), clamped.
+template <class G>
+[[gnu::always_inline]] static inline void choose_group(Input& in, int g, std::uint32_t* triangle) {
+  constexpr int kWidth = Wide<1, G>::kGroupLanes;
+  const auto splat = [](double x) { return lm::Splat<G>::value(x); };
+  const G zero{}, one = splat(1.0), last = splat(double(in.slots - 1));
+  G ux, uy;
+  lm::load(ux, in.ux.v + g);
+  lm::load(uy, in.uy.v + g);
+  G index{};
+  for (int s = 0; s < in.slots; ++s) index = index + lm::select(uy < splat(in.high.v[s]), zero, one);
+  const G slot = lm::select(last < index, last, index);
+  const auto lookup = lm::make_lookup(slot);
+  const G low = lm::lookup(in.low.v, lookup), high = lm::lookup(in.high.v, lookup);
+  lm::store(in.slot.v + g, slot);
+  lm::store(in.v.v + g, lm::clamp((uy - low) / (high - low), zero, splat(1.0 - 0x1p-53)));
+  lm::store(in.angle.v + g, ux * lm::lookup(in.solid_area.v, lookup) - lm::lookup(in.alpha.v, lookup));
+  lm::store(in.b1.v + g, zero);
+  lm::store(in.b2.v + g, zero);
+  lm::store(in.by_solid_angle + g, zero == zero);
+  alignas(64) double slots[kWidth];
+  lm::store(slots, slot);
+  for (int l = 0; l < kWidth; ++l) triangle[g + l] = static_cast<std::uint32_t>(slots[l]);
+}
+
 void choose(Input& in, int count, std::uint32_t* triangle) {
-  const D4 zero{}, one = lm::broadcast(1.0), last = lm::broadcast(double(in.slots - 1));
-  for (int g = 0; g < count; g += 4) {
-    D4 ux, uy;
-    lm::load(ux, in.ux.v + g);
-    lm::load(uy, in.uy.v + g);
-    D4 index{};
-    for (int s = 0; s < in.slots; ++s) index = index + lm::select(uy < lm::broadcast(in.high.v[s]), zero, one);
-    const D4 slot = lm::select(last < index, last, index);
-    const lm::Lookup lookup = lm::make_lookup(slot);
-    const D4 low = lm::lookup(in.low.v, lookup), high = lm::lookup(in.high.v, lookup);
-    lm::store(in.slot.v + g, slot);
-    lm::store(in.v.v + g, lm::clamp((uy - low) / (high - low), zero, lm::broadcast(1.0 - 0x1p-53)));
-    lm::store(in.angle.v + g, ux * lm::lookup(in.solid_area.v, lookup) - lm::lookup(in.alpha.v, lookup));
-    lm::store(in.b1.v + g, zero);
-    lm::store(in.b2.v + g, zero);
-    lm::store(in.by_solid_angle + g, zero == zero);
-    alignas(32) double slots[4];
-    lm::store(slots, slot);
-    for (int l = 0; l < 4; ++l) triangle[g + l] = static_cast<std::uint32_t>(slots[l]);
-  }
+  int g = 0;
+#ifdef RT_LIGHT_SAMPLE_LANES_AVX512
+  for (; g + 8 <= count; g += 8) choose_group<lm::D8>(in, g, triangle);
+#endif
+  for (; g < count; g += 4) choose_group<D4>(in, g, triangle);
 }
 
 // The lanes in use, as many groups at a time as the build's registers hold: 16 lanes in two zmm
@@ -270,13 +279,18 @@ void sample(const Input& in, int count, Output& out) {
 }
 
 // pow(x[k], y) for the 16 lanes: by binary powering where y is a whole number up to
-// lm::kMaxIntegerPower, else by lm::pow_many; four groups of four at a time with AVX2 (one
-// register each; the AVX-512 build too), two with SSE2 (two registers each; four would spill), to
-// overlap the chains.
+// lm::kMaxIntegerPower, else by lm::pow_many; two groups of eight at a time with AVX-512, four of
+// four with AVX2 (one register each), two of four with SSE2 (two registers each; four would
+// spill), to overlap the chains.
 void powers(const double* x, double y, double* out) {
   static_assert(kLanes == 16);
   const bool whole = y >= 0.0 && y <= lm::kMaxIntegerPower && y == std::floor(y);
-#if defined(RT_LIGHT_SAMPLE_LANES_AVX2) || defined(RT_LIGHT_SAMPLE_LANES_AVX512)
+#if defined(RT_LIGHT_SAMPLE_LANES_AVX512)
+  if (whole)
+    lm::pow_integer_many<2, lm::D8>(x, y, out);
+  else
+    lm::pow_many<2, lm::D8>(x, y, out);
+#elif defined(RT_LIGHT_SAMPLE_LANES_AVX2)
   if (whole)
     lm::pow_integer_many<4>(x, y, out);
   else
@@ -348,26 +362,48 @@ void spherical(const SphericalInput& in, SphericalOutput& out) {
 // The groups of four lanes a chunk uses.
 static int groups_in_use(const Chunk& chunk) { return (chunk.count + 3) / 4 * 4; }
 
+// Lanes g .. g + G's lanes - 1 of a field, as one group G (D4 or D8).
+template <class G>
+[[gnu::always_inline]] static inline G group_at(const Lanes& v, int g) {
+  G r;
+  lm::load(r, v.v + g);
+  return r;
+}
+template <class G>
+[[gnu::always_inline]] static inline Vec3W<G> group_at(const Vec3& v, int g) {
+  return {group_at<G>(v.x, g), group_at<G>(v.y, g), group_at<G>(v.z, g)};
+}
+template <class G>
+[[gnu::always_inline]] static inline Vec3W<G> splat3(const double (&v)[3]) {
+  return {lm::Splat<G>::value(v[0]), lm::Splat<G>::value(v[1]), lm::Splat<G>::value(v[2])};
+}
+
+// n.l and the highlight's cosine max(n.h, 0) of lanes g .. g + G's lanes - 1.
+template <class G>
+[[gnu::always_inline]] static inline void facing_group(const Shading& shading, const Chunk& chunk, int g,
+                                                       FacingOutput& out, double* n_dot_h) {
+  const G zero{}, one = lm::Splat<G>::value(1.0);
+  const Vec3W<G> normal = splat3<G>(shading.normal), to_eye = splat3<G>(shading.to_eye);
+  const Vec3W<G> direction = group_at<G>(chunk.out.direction, g);
+  const G n_dot_l = dot(normal, direction);
+  lm::store(out.n_dot_l.v + g, n_dot_l);
+  const Vec3W<G> half_sum{direction.x + to_eye.x, direction.y + to_eye.y, direction.z + to_eye.z};
+  const G half_length = lm::sqrt(dot(half_sum, half_sum));
+  const G cosine = lm::select(half_length > zero, lm::max(dot(normal, half_sum) / half_length, zero), zero);
+  lm::MaskOf<G> valid;
+  lm::load(valid, chunk.out.valid + g);
+  lm::store(n_dot_h + g, lm::select(valid & (n_dot_l > zero), cosine, one));
+}
+
 void facing(const Shading& shading, const Chunk& chunk, FacingOutput& out) {
-  using lm::Xyz;
-  const D4 zero{}, one = lm::broadcast(1.0);
-  const Xyz normal{lm::broadcast(shading.normal[0]), lm::broadcast(shading.normal[1]), lm::broadcast(shading.normal[2])};
-  const Xyz to_eye{lm::broadcast(shading.to_eye[0]), lm::broadcast(shading.to_eye[1]), lm::broadcast(shading.to_eye[2])};
-  alignas(32) double n_dot_h[kLanes];
+  alignas(64) double n_dot_h[kLanes];
   const int used = groups_in_use(chunk);
-  for (int g = 0; g < used; g += 4) {
-    Xyz direction;
-    lm::load(direction, chunk.out.direction, g);
-    const D4 n_dot_l = lm::dot(normal, direction);
-    lm::store(out.n_dot_l.v + g, n_dot_l);
-    const Xyz half_sum{direction.x + to_eye.x, direction.y + to_eye.y, direction.z + to_eye.z};
-    const D4 half_length = lm::sqrt(lm::dot(half_sum, half_sum));
-    const D4 cosine = lm::select(half_length > zero, lm::max(lm::dot(normal, half_sum) / half_length, zero), zero);
-    lm::M4 valid;
-    lm::load(valid, chunk.out.valid + g);
-    lm::store(n_dot_h + g, lm::select(valid & (n_dot_l > zero), cosine, one));
-  }
-  for (int g = used; g < kLanes; g += 4) lm::store(n_dot_h + g, one);
+  int g = 0;
+#ifdef RT_LIGHT_SAMPLE_LANES_AVX512
+  for (; g + 8 <= used; g += 8) facing_group<lm::D8>(shading, chunk, g, out, n_dot_h);
+#endif
+  for (; g < used; g += 4) facing_group<D4>(shading, chunk, g, out, n_dot_h);
+  for (g = used; g < kLanes; ++g) n_dot_h[g] = 1.0;
   if (shading.highlights)
     powers(n_dot_h, shading.shininess, out.power.v);
   else
@@ -400,24 +436,13 @@ template <class G>
   using ray_offset_detail::kScaledRoundoff;
   using V = Vec3W<G>;
   const auto splat = [](double x) { return lm::Splat<G>::value(x); };
-  const auto splat3 = [&](const double (&v)[3]) { return V{splat(v[0]), splat(v[1]), splat(v[2])}; };
-  const auto load3 = [g](const Vec3& v) {
-    V r;
-    lm::load(r.x, v.x.v + g);
-    lm::load(r.y, v.y.v + g);
-    lm::load(r.z, v.z.v + g);
-    return r;
-  };
-  const auto load1 = [g](const Lanes& v) {
-    G r;
-    lm::load(r, v.v + g);
-    return r;
-  };
   const G zero{}, one = splat(1.0);
-  const V diffuse = splat3(shading.diffuse), specular = splat3(shading.specular), normal = splat3(shading.geometric_normal);
-  const V direction = load3(chunk.out.direction), radiance = load3(chunk.out.radiance_over_pdf);
-  const V light_point = load3(chunk.out.point), light_normal = load3(chunk.out.normal);
-  const G n_dot_l = load1(facing.n_dot_l), power = load1(facing.power), error_bound = load1(chunk.out.error_bound);
+  const V diffuse = splat3<G>(shading.diffuse), specular = splat3<G>(shading.specular),
+          normal = splat3<G>(shading.geometric_normal);
+  const V direction = group_at<G>(chunk.out.direction, g), radiance = group_at<G>(chunk.out.radiance_over_pdf, g);
+  const V light_point = group_at<G>(chunk.out.point, g), light_normal = group_at<G>(chunk.out.normal, g);
+  const G n_dot_l = group_at<G>(facing.n_dot_l, g), power = group_at<G>(facing.power, g),
+          error_bound = group_at<G>(chunk.out.error_bound, g);
 
   // term = radiance (C_d n.l + C_s power) / (pi N), or (0, 0, 0).
   const auto counted = (lit ? zero == zero : zero != zero) & (n_dot_l > zero);
