@@ -106,7 +106,7 @@ Vec3d orthogonal_unit(const Vec3d& v, const Vec3d& axis) { return glm::normalize
 // Built for AVX2 as well (8 lanes of 32-bit multiplies; SSE2 has no pmulld), chosen when the
 // program loads; integer hashing and the same double operations, so both give the same bits.
 constexpr std::size_t kCmjChunk = 64;
-[[gnu::target_clones("avx2", "default")]] void cmj_chunk(std::uint32_t first, std::span<Vec2d> out, std::uint32_t count, std::uint32_t pattern) {
+[[gnu::target_clones("avx512f", "avx2", "default")]] void cmj_chunk(std::uint32_t first, std::span<Vec2d> out, std::uint32_t count, std::uint32_t pattern) {
   const auto n = static_cast<int>(out.size());
   const auto columns = static_cast<std::uint32_t>(std::sqrt(double(count)));
   const std::uint32_t rows = (count + columns - 1) / columns;
