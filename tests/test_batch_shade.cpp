@@ -338,14 +338,15 @@ TEST_CASE("batch shading lanes equal the scalar ray offsets bit for bit", "[batc
   }
 }
 
-// The two builds of the lane arithmetic (render/batch_lanes.h: baseline SSE2 and AVX2) on the same
-// random lanes, degenerate triangles, lights at a point and spot cones included: every output
-// must be the same bits. The test above checks whichever build this CPU runs against the scalar
-// functions; this one ties the other build to it.
-TEST_CASE("batch shading lanes: the AVX2 build computes the baseline build's bits", "[batch]") {
+// The builds of the lane arithmetic (render/batch_lanes.h: baseline SSE2, AVX2 and AVX-512,
+// whichever this CPU runs) on the same random lanes, degenerate triangles, lights at a point and
+// spot cones included, every count of lanes (AVX-512 takes eight, then four at a time): every
+// output must be the same bits. The test above checks whichever build this CPU runs against the
+// scalar functions; this one ties the others to the baseline.
+TEST_CASE("batch shading lanes: the AVX2 and AVX-512 builds compute the baseline build's bits", "[batch]") {
   namespace bl = rt::batch_lanes;
-  const bl::Kernels* avx2 = bl::avx2_kernels();
-  if (!avx2) {
+  const std::vector<const bl::Kernels*> wider = bl::wider_kernels();
+  if (wider.empty()) {
     SUCCEED("this CPU has no AVX2: only the baseline build runs here");
     return;
   }
@@ -360,82 +361,83 @@ TEST_CASE("batch shading lanes: the AVX2 build computes the baseline build's bit
       v.z.v[i] = double(float(uniform(-scale, scale)));
     }
   };
-  for (int round = 0; round < 64; ++round) {
-    const double scale = round % 3 == 0 ? 1e4 : round % 3 == 1 ? 1e-3 : 1.0;
-    bl::Gathered in;
-    for (rt::Vec3Lanes<kLanes>* v : {&in.p0, &in.p1, &in.p2, &in.n0, &in.n1, &in.n2, &in.d}) fill(*v, scale);
-    for (int i = 0; i < kLanes; ++i) {
-      in.b1.v[i] = double(float(uniform(0, 0.5)));
-      in.b2.v[i] = double(float(uniform(0, 0.5)));
-      in.flip[i] = random() % 2 ? -1 : 0;
-    }
-    in.p1.x.v[3] = in.p0.x.v[3], in.p1.y.v[3] = in.p0.y.v[3], in.p1.z.v[3] = in.p0.z.v[3];  // zero area
-    const rt::batch_lanes::OriginPolicy policy{round % 2 == 1, 1e-4};
-    rt::BatchShader::Lanes a, b;
-    a.count = b.count = 1 + round % kLanes;
-    a.reflections = b.reflections = a.highlights = b.highlights = true;
-    for (rt::BatchShader::Lanes* lanes : {&a, &b}) {
-      fill(lanes->ambient, 1.0);
-      fill(lanes->diffuse, 1.0);
-      fill(lanes->specular, 1.0);
-      for (int i = 0; i < kLanes; ++i) lanes->highlight[i] = i % 3 ? -1 : 0;
-    }
-    b.ambient = a.ambient, b.diffuse = a.diffuse, b.specular = a.specular;
-    baseline.surfaces(in, policy, a);
-    avx2->surfaces(in, policy, b);
-    const int n = a.count;  // lanes past it may be left unwritten
-    const auto same_lanes = [n](const auto& x, const auto& y) {
-      return std::memcmp(&x.v, &y.v, sizeof(double) * std::size_t(n)) == 0;
-    };
-    const auto same_vectors = [&](const rt::Vec3Lanes<kLanes>& x, const rt::Vec3Lanes<kLanes>& y) {
-      return same_lanes(x.x, y.x) && same_lanes(x.y, y.y) && same_lanes(x.z, y.z);
-    };
-    const auto same_origins = [n](const rt::Vec3fLanes<kLanes>& x, const rt::Vec3fLanes<kLanes>& y) {
-      const std::size_t bytes = sizeof(float) * std::size_t(n);
-      return std::memcmp(x.x, y.x, bytes) == 0 && std::memcmp(x.y, y.y, bytes) == 0 && std::memcmp(x.z, y.z, bytes) == 0;
-    };
-    CHECK(same_vectors(a.point, b.point));
-    CHECK(same_vectors(a.geometric_normal, b.geometric_normal));
-    CHECK(same_lanes(a.error_bound, b.error_bound));
-    CHECK(same_vectors(a.direction, b.direction));
-    CHECK(same_vectors(a.normal, b.normal));
-    CHECK(same_vectors(a.reflected, b.reflected));
-    CHECK(same_origins(a.reflection_origin, b.reflection_origin));
+  for (const bl::Kernels* wide : wider)
+    for (int round = 0; round < 64; ++round) {
+      const double scale = round % 3 == 0 ? 1e4 : round % 3 == 1 ? 1e-3 : 1.0;
+      bl::Gathered in;
+      for (rt::Vec3Lanes<kLanes>* v : {&in.p0, &in.p1, &in.p2, &in.n0, &in.n1, &in.n2, &in.d}) fill(*v, scale);
+      for (int i = 0; i < kLanes; ++i) {
+        in.b1.v[i] = double(float(uniform(0, 0.5)));
+        in.b2.v[i] = double(float(uniform(0, 0.5)));
+        in.flip[i] = random() % 2 ? -1 : 0;
+      }
+      in.p1.x.v[3] = in.p0.x.v[3], in.p1.y.v[3] = in.p0.y.v[3], in.p1.z.v[3] = in.p0.z.v[3];  // zero area
+      const rt::batch_lanes::OriginPolicy policy{round % 2 == 1, 1e-4};
+      rt::BatchShader::Lanes a, b;
+      a.count = b.count = 1 + round % kLanes;
+      a.reflections = b.reflections = a.highlights = b.highlights = true;
+      for (rt::BatchShader::Lanes* lanes : {&a, &b}) {
+        fill(lanes->ambient, 1.0);
+        fill(lanes->diffuse, 1.0);
+        fill(lanes->specular, 1.0);
+        for (int i = 0; i < kLanes; ++i) lanes->highlight[i] = i % 3 ? -1 : 0;
+      }
+      b.ambient = a.ambient, b.diffuse = a.diffuse, b.specular = a.specular;
+      baseline.surfaces(in, policy, a);
+      wide->surfaces(in, policy, b);
+      const int n = a.count;  // lanes past it may be left unwritten
+      const auto same_lanes = [n](const auto& x, const auto& y) {
+        return std::memcmp(&x.v, &y.v, sizeof(double) * std::size_t(n)) == 0;
+      };
+      const auto same_vectors = [&](const rt::Vec3Lanes<kLanes>& x, const rt::Vec3Lanes<kLanes>& y) {
+        return same_lanes(x.x, y.x) && same_lanes(x.y, y.y) && same_lanes(x.z, y.z);
+      };
+      const auto same_origins = [n](const rt::Vec3fLanes<kLanes>& x, const rt::Vec3fLanes<kLanes>& y) {
+        const std::size_t bytes = sizeof(float) * std::size_t(n);
+        return std::memcmp(x.x, y.x, bytes) == 0 && std::memcmp(x.y, y.y, bytes) == 0 && std::memcmp(x.z, y.z, bytes) == 0;
+      };
+      CHECK(same_vectors(a.point, b.point));
+      CHECK(same_vectors(a.geometric_normal, b.geometric_normal));
+      CHECK(same_lanes(a.error_bound, b.error_bound));
+      CHECK(same_vectors(a.direction, b.direction));
+      CHECK(same_vectors(a.normal, b.normal));
+      CHECK(same_vectors(a.reflected, b.reflected));
+      CHECK(same_origins(a.reflection_origin, b.reflection_origin));
 
-    bl::LightLanes light;
-    light.directional = round % 4 == 3;
-    light.spot = round % 4 == 1;
-    const double position[3] = {a.point.x.v[0], uniform(-2, 2) * scale, uniform(-2, 2) * scale};
-    for (int c = 0; c < 3; ++c) {
-      light.position[c] = round % 8 == 2 ? (c == 0 ? a.point.x.v[0] : c == 1 ? a.point.y.v[0] : a.point.z.v[0])
-                                         : position[c];  // round 2, 10, ...: at lane 0's point
-      light.to_light[c] = c == 1 ? 1.0 : 0.0;
-      light.color[c] = 0.5 + 0.1 * c;
-      light.attenuation[c] = c == 0 ? 1.0 : 0.1 * c;
-      light.spot_direction[c] = c == 1 ? -1.0 : 0.0;
+      bl::LightLanes light;
+      light.directional = round % 4 == 3;
+      light.spot = round % 4 == 1;
+      const double position[3] = {a.point.x.v[0], uniform(-2, 2) * scale, uniform(-2, 2) * scale};
+      for (int c = 0; c < 3; ++c) {
+        light.position[c] = round % 8 == 2 ? (c == 0 ? a.point.x.v[0] : c == 1 ? a.point.y.v[0] : a.point.z.v[0])
+                                           : position[c];  // round 2, 10, ...: at lane 0's point
+        light.to_light[c] = c == 1 ? 1.0 : 0.0;
+        light.color[c] = 0.5 + 0.1 * c;
+        light.attenuation[c] = c == 0 ? 1.0 : 0.1 * c;
+        light.spot_direction[c] = c == 1 ? -1.0 : 0.0;
+      }
+      light.spot_cos_outer = 0.8;
+      light.cone_width = 0.1;
+      light.extent = scale * 2;
+      a.lights.resize(1);
+      b.lights.resize(1);
+      rt::Vec3Lanes<kLanes> intensity_a, intensity_b;
+      rt::LaneArray<kLanes> ndl_a, ndl_b, ndh_a, ndh_b, power;
+      baseline.light(light, policy, a, a.lights[0], intensity_a, ndl_a, ndh_a);
+      wide->light(light, policy, b, b.lights[0], intensity_b, ndl_b, ndh_b);
+      CHECK(same_vectors(intensity_a, intensity_b));
+      CHECK(same_lanes(ndl_a, ndl_b));
+      CHECK(same_lanes(ndh_a, ndh_b));
+      CHECK(same_vectors(a.lights[0].to_light, b.lights[0].to_light));
+      CHECK(same_lanes(a.lights[0].geometric_cosine, b.lights[0].geometric_cosine));
+      CHECK(same_lanes(a.lights[0].shadow_distance, b.lights[0].shadow_distance));
+      CHECK(std::memcmp(a.lights[0].on_point, b.lights[0].on_point, sizeof(std::int64_t) * std::size_t(n)) == 0);
+      CHECK(same_origins(a.lights[0].shadow_origin, b.lights[0].shadow_origin));
+      for (int i = 0; i < kLanes; ++i) power.v[i] = uniform(0, 1);
+      baseline.terms(a, intensity_a, ndl_a, power, a.lights[0]);
+      wide->terms(b, intensity_a, ndl_a, power, b.lights[0]);
+      CHECK(same_vectors(a.lights[0].term, b.lights[0].term));
     }
-    light.spot_cos_outer = 0.8;
-    light.cone_width = 0.1;
-    light.extent = scale * 2;
-    a.lights.resize(1);
-    b.lights.resize(1);
-    rt::Vec3Lanes<kLanes> intensity_a, intensity_b;
-    rt::LaneArray<kLanes> ndl_a, ndl_b, ndh_a, ndh_b, power;
-    baseline.light(light, policy, a, a.lights[0], intensity_a, ndl_a, ndh_a);
-    avx2->light(light, policy, b, b.lights[0], intensity_b, ndl_b, ndh_b);
-    CHECK(same_vectors(intensity_a, intensity_b));
-    CHECK(same_lanes(ndl_a, ndl_b));
-    CHECK(same_lanes(ndh_a, ndh_b));
-    CHECK(same_vectors(a.lights[0].to_light, b.lights[0].to_light));
-    CHECK(same_lanes(a.lights[0].geometric_cosine, b.lights[0].geometric_cosine));
-    CHECK(same_lanes(a.lights[0].shadow_distance, b.lights[0].shadow_distance));
-    CHECK(std::memcmp(a.lights[0].on_point, b.lights[0].on_point, sizeof(std::int64_t) * std::size_t(n)) == 0);
-    CHECK(same_origins(a.lights[0].shadow_origin, b.lights[0].shadow_origin));
-    for (int i = 0; i < kLanes; ++i) power.v[i] = uniform(0, 1);
-    baseline.terms(a, intensity_a, ndl_a, power, a.lights[0]);
-    avx2->terms(b, intensity_a, ndl_a, power, b.lights[0]);
-    CHECK(same_vectors(a.lights[0].term, b.lights[0].term));
-  }
 }
 
 // The gather of a hit's vertices, normals, direction and barycentrics (Kernels::gather): both
@@ -454,7 +456,7 @@ TEST_CASE("batch shading lanes: the gather of both builds widens each lane's ver
   }
   const bl::VertexArrays vertices{positions.data(), normals.data(), vertex_count};
   std::vector<const bl::Kernels*> builds{&bl::baseline_kernels()};
-  if (bl::avx2_kernels()) builds.push_back(bl::avx2_kernels());
+  for (const bl::Kernels* build : bl::wider_kernels()) builds.push_back(build);
   int last_vertex_lanes = 0;
   for (int round = 0; round < 50; ++round) {
     const int count = 1 + round % kLanes;

@@ -1,10 +1,12 @@
 #pragma once
 // The batch shader's arithmetic over lanes (batch_shade.cpp), in a file of its own so that it can be
-// built twice: for baseline x86-64 (SSE2) and with AVX2 (batch_lanes_avx2.cpp), chosen once by
-// what the CPU has. Both builds compute every lane with the same IEEE operations in the same order
-// (lane_math.h), so they give the same bits; tests/test_batch_shade.cpp compares them.
+// built three times: for baseline x86-64 (SSE2), with AVX2 (batch_lanes_avx2.cpp) and with AVX-512
+// (batch_lanes_avx512.cpp: eight lanes a register in surfaces, light and terms), chosen once by
+// what the CPU has. Every build computes every lane with the same IEEE operations in the same
+// order (lane_math.h), so they give the same bits; tests/test_batch_shade.cpp compares them.
 
 #include <cstdint>
+#include <vector>
 
 #include "batch_shade.h"
 
@@ -48,10 +50,14 @@ struct Kernels {
                 const LaneArray<kLanes>& power, Lanes::Light& out);
 };
 
-// The baseline build, and the AVX2 one (nullptr when the CPU lacks AVX2).
+// The baseline build, the AVX2 one (nullptr when the CPU lacks AVX2) and the AVX-512 one (nullptr
+// when the CPU lacks AVX-512 F, DQ or VL).
 const Kernels& baseline_kernels();
 const Kernels* avx2_kernels();
-// The AVX2 build where the CPU has it, else the baseline.
+const Kernels* avx512_kernels();
+// The builds beyond the baseline that this CPU can run (for tests that compare builds).
+std::vector<const Kernels*> wider_kernels();
+// The widest build the CPU has: AVX-512, else AVX2, else the baseline.
 const Kernels& best_kernels();
 
 }  // namespace rt::batch_lanes

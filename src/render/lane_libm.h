@@ -27,8 +27,6 @@ inline namespace RT_LANE_NAMESPACE {
 // reorder window holds for one group: four groups at a time (AVX2) take half the time per value
 // that one does. With SSE2 (two registers a group) more than two groups spill. A group G is D4
 // or, in the AVX-512 build, D8 (lane_math.h).
-template <class G>
-using MaskOf = decltype(G{} < G{});
 template <int N, class G = D4>
 struct WideMask;
 template <int N, class G = D4>
@@ -117,23 +115,7 @@ RT_LANE_INLINE Wide<N, G> shift_right(const Wide<N, G>& a) {
 }
 #undef RT_WIDE_EACH
 
-// A constant in every lane of a value of type V (a group or Wide<N, G>).
-template <class V>
-struct Splat;
-template <>
-struct Splat<D4> {
-  RT_LANE_INLINE static D4 value(double x) { return broadcast(x); }
-  RT_LANE_INLINE static D4 bits(std::uint64_t b) { return from_bits(b); }
-};
-#ifdef __AVX512F__
-template <>
-struct Splat<D8> {
-  RT_LANE_INLINE static D8 value(double x) { return {_mm512_set1_pd(x)}; }
-  RT_LANE_INLINE static D8 bits(std::uint64_t b) {
-    return {_mm512_castsi512_pd(_mm512_set1_epi64(static_cast<long long>(b)))};
-  }
-};
-#endif
+// A constant in every lane of a Wide (lane_math.h's Splat).
 template <int N, class G>
 struct Splat<Wide<N, G>> {
   RT_LANE_INLINE static Wide<N, G> value(double x) {

@@ -352,47 +352,6 @@ RT_LANE_INLINE F4 round_away(const D4& p, const D4& away) {
   return _mm_castsi128_ps(_mm_add_epi32(bits, _mm_and_si128(_mm_or_si128(up, down), step)));
 }
 
-// Three-vectors of lanes (world space, double) and glm's operations on them, with glm's order of
-// operations. Xyz's layout differs between the implementations, so it lives in each one's inline
-// namespace.
-inline namespace RT_LANE_NAMESPACE {
-
-struct Xyz {
-  D4 x, y, z;
-};
-
-// Lanes g..g+3 of a structure of arrays `v` (v.x.v, v.y.v, v.z.v: double arrays), and back.
-template <class Lanes3>
-RT_LANE_INLINE void load(Xyz& out, const Lanes3& v, int g) {
-  load(out.x, v.x.v + g);
-  load(out.y, v.y.v + g);
-  load(out.z, v.z.v + g);
-}
-template <class Lanes3>
-RT_LANE_INLINE void store(Lanes3& to, int g, const Xyz& v) {
-  store(to.x.v + g, v.x);
-  store(to.y.v + g, v.y);
-  store(to.z.v + g, v.z);
-}
-
-// glm::dot: (a.x b.x + a.y b.y) + a.z b.z.
-RT_LANE_INLINE D4 dot(const Xyz& a, const Xyz& b) {
-  return a.x * b.x + a.y * b.y + a.z * b.z;
-}
-
-// glm::cross.
-RT_LANE_INLINE Xyz cross(const Xyz& a, const Xyz& b) {
-  return {a.y * b.z - b.y * a.z, a.z * b.x - b.z * a.x, a.x * b.y - b.x * a.y};
-}
-
-// glm::normalize: v times 1 / sqrt(v . v).
-RT_LANE_INLINE Xyz normalize(const Xyz& v) {
-  const D4 scale = broadcast(1.0) / sqrt(dot(v, v));
-  return {v.x * scale, v.y * scale, v.z * scale};
-}
-
-}  // namespace RT_LANE_NAMESPACE
-
 #ifdef __AVX512F__
 inline namespace RT_LANE_NAMESPACE {
 
@@ -432,6 +391,18 @@ RT_LANE_BINARY(-, _mm512_sub_pd)
 RT_LANE_BINARY(*, _mm512_mul_pd)
 RT_LANE_BINARY(/, _mm512_div_pd)
 #undef RT_LANE_BINARY
+RT_LANE_INLINE D8& operator+=(D8& a, const D8& b) {
+  return a = a + b;
+}
+RT_LANE_INLINE D8& operator-=(D8& a, const D8& b) {
+  return a = a - b;
+}
+RT_LANE_INLINE D8& operator*=(D8& a, const D8& b) {
+  return a = a * b;
+}
+RT_LANE_INLINE D8& operator/=(D8& a, const D8& b) {
+  return a = a / b;
+}
 RT_LANE_INLINE D8 operator-(const D8& a) {
   return {_mm512_xor_pd(a.v, _mm512_set1_pd(-0.0))};
 }
@@ -503,6 +474,9 @@ RT_LANE_INLINE F8 to_float(const D8& v) {
 RT_LANE_INLINE D8 to_double(const F8& v) {
   return {_mm512_maskz_cvtps_pd(0xFF, v)};
 }
+RT_LANE_INLINE void load(F8& out, const float* p) {
+  out = _mm256_loadu_ps(p);
+}
 RT_LANE_INLINE void store(float* p, const F8& v) {
   _mm256_storeu_ps(p, v);
 }
@@ -536,6 +510,82 @@ RT_LANE_INLINE D8 lookup(const double* table, const Lookup8& l) {
 
 }  // namespace RT_LANE_NAMESPACE
 #endif
+
+
+inline namespace RT_LANE_NAMESPACE {
+
+// The mask type of a group G's comparisons (M4 or M8).
+template <class G>
+using MaskOf = decltype(G{} < G{});
+
+// A constant in every lane of a value of type V (a group, D4 or D8, or lane_libm.h's Wide).
+template <class V>
+struct Splat;
+template <>
+struct Splat<D4> {
+  RT_LANE_INLINE static D4 value(double x) { return broadcast(x); }
+  RT_LANE_INLINE static D4 bits(std::uint64_t b) { return from_bits(b); }
+};
+#ifdef __AVX512F__
+template <>
+struct Splat<D8> {
+  RT_LANE_INLINE static D8 value(double x) { return {_mm512_set1_pd(x)}; }
+  RT_LANE_INLINE static D8 bits(std::uint64_t b) {
+    return {_mm512_castsi512_pd(_mm512_set1_epi64(static_cast<long long>(b)))};
+  }
+};
+#endif
+
+// Three-vectors of lanes (world space, double) and glm's operations on them, with glm's order of
+// operations; V is a group (D4, D8) or lane_libm.h's Wide. Their layout differs between the
+// implementations, so they live in each one's inline namespace.
+template <class V>
+struct Vec3Of {
+  V x, y, z;
+};
+using Xyz = Vec3Of<D4>;
+
+// Lanes g .. g + G's lanes - 1 of a structure of arrays `v` (v.x.v, v.y.v, v.z.v: double arrays),
+// and back.
+template <class G, class Lanes3>
+RT_LANE_INLINE void load(Vec3Of<G>& out, const Lanes3& v, int g) {
+  load(out.x, v.x.v + g);
+  load(out.y, v.y.v + g);
+  load(out.z, v.z.v + g);
+}
+template <class G, class Lanes3>
+RT_LANE_INLINE void store(Lanes3& to, int g, const Vec3Of<G>& v) {
+  store(to.x.v + g, v.x);
+  store(to.y.v + g, v.y);
+  store(to.z.v + g, v.z);
+}
+
+// glm::dot: (a.x b.x + a.y b.y) + a.z b.z.
+template <class V>
+RT_LANE_INLINE V dot(const Vec3Of<V>& a, const Vec3Of<V>& b) {
+  return a.x * b.x + a.y * b.y + a.z * b.z;
+}
+
+// glm::cross.
+template <class V>
+RT_LANE_INLINE Vec3Of<V> cross(const Vec3Of<V>& a, const Vec3Of<V>& b) {
+  return {a.y * b.z - b.y * a.z, a.z * b.x - b.z * a.x, a.x * b.y - b.x * a.y};
+}
+
+// glm::normalize: v times 1 / sqrt(v . v).
+template <class V>
+RT_LANE_INLINE Vec3Of<V> normalize(const Vec3Of<V>& v) {
+  const V scale = Splat<V>::value(1.0) / sqrt(dot(v, v));
+  return {v.x * scale, v.y * scale, v.z * scale};
+}
+
+// a - b, component by component.
+template <class V>
+RT_LANE_INLINE Vec3Of<V> minus(const Vec3Of<V>& a, const Vec3Of<V>& b) {
+  return {a.x - b.x, a.y - b.y, a.z - b.z};
+}
+
+}  // namespace RT_LANE_NAMESPACE
 
 #undef RT_LANE_INLINE
 

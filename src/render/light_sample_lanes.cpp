@@ -30,11 +30,9 @@ using lm::Wide;
 using lm::WideMask;
 
 // W = Wide<N, G>: N groups G of lanes (lane_libm.h). The kernel's arithmetic is issued for all N
-// groups together, so that their long chains of divisions and square roots overlap.
-template <class W>
-struct Vec3W {
-  W x, y, z;
-};
+// groups together, so that their long chains of divisions and square roots overlap. Three-vectors
+// of them are lane_math.h's Vec3Of, with glm's dot, cross and normalize.
+using lm::Vec3Of;
 
 template <class W>
 [[gnu::always_inline]] static inline W at(const Lanes& v, int g) {
@@ -43,7 +41,7 @@ template <class W>
   return out;
 }
 template <class W>
-[[gnu::always_inline]] static inline Vec3W<W> at3(const Vec3& v, int g) {
+[[gnu::always_inline]] static inline Vec3Of<W> at3(const Vec3& v, int g) {
   return {at<W>(v.x, g), at<W>(v.y, g), at<W>(v.z, g)};
 }
 template <class W>
@@ -51,7 +49,7 @@ template <class W>
   for (int i = 0; i < W::kGroups; ++i) lm::store(to.v + g + W::kGroupLanes * i, v.g[i]);
 }
 template <class W>
-[[gnu::always_inline]] static inline void put(Vec3& to, int g, const Vec3W<W>& v) {
+[[gnu::always_inline]] static inline void put(Vec3& to, int g, const Vec3Of<W>& v) {
   put(to.x, g, v.x);
   put(to.y, g, v.y);
   put(to.z, g, v.z);
@@ -83,7 +81,7 @@ template <class W>
 struct PerLane {
   PerLane(const Input&, int g) : first(g) {}
   W operator()(const Lanes& field) const { return at<W>(field, first); }
-  Vec3W<W> operator()(const Vec3& field) const { return at3<W>(field, first); }
+  Vec3Of<W> operator()(const Vec3& field) const { return at3<W>(field, first); }
   int first;
 };
 template <class W>
@@ -100,38 +98,19 @@ struct BySlot {
     for (int i = 0; i < W::kGroups; ++i) v.g[i] = lm::lookup(field.v, lookups[i]);
     return v;
   }
-  Vec3W<W> operator()(const Vec3& field) const { return {(*this)(field.x), (*this)(field.y), (*this)(field.z)}; }
+  Vec3Of<W> operator()(const Vec3& field) const { return {(*this)(field.x), (*this)(field.y), (*this)(field.z)}; }
   decltype(lm::make_lookup(typename W::Group{})) lookups[W::kGroups];
 };
 
-// glm's dot, cross and normalize, with glm's order of operations (lane_math.h's Xyz).
-template <class W>
-[[gnu::always_inline]] static inline W dot(const Vec3W<W>& a, const Vec3W<W>& b) {
-  return a.x * b.x + a.y * b.y + a.z * b.z;
-}
-template <class W>
-[[gnu::always_inline]] static inline Vec3W<W> cross(const Vec3W<W>& a, const Vec3W<W>& b) {
-  return {a.y * b.z - b.y * a.z, a.z * b.x - b.z * a.x, a.x * b.y - b.x * a.y};
-}
-template <class W>
-[[gnu::always_inline]] static inline Vec3W<W> normalize(const Vec3W<W>& v) {
-  const W scale = splat<W>(1.0) / lm::sqrt(dot(v, v));
-  return {v.x * scale, v.y * scale, v.z * scale};
-}
-template <class W>
-[[gnu::always_inline]] static inline Vec3W<W> minus(const Vec3W<W>& a, const Vec3W<W>& b) {
-  return {a.x - b.x, a.y - b.y, a.z - b.z};
-}
-
 // a s + b t, component by component.
 template <class W>
-[[gnu::always_inline]] static inline Vec3W<W> combine(const W& s, const Vec3W<W>& a, const W& t, const Vec3W<W>& b) {
+[[gnu::always_inline]] static inline Vec3Of<W> combine(const W& s, const Vec3Of<W>& a, const W& t, const Vec3Of<W>& b) {
   return {s * a.x + t * b.x, s * a.y + t * b.y, s * a.z + t * b.z};
 }
 
 // SphericalTriangle::sample (sampling.cpp).
 template <class W, class Fetch>
-[[gnu::always_inline]] static inline Vec3W<W> arvo_direction(const Input& in, int g, const Fetch& fetch) {
+[[gnu::always_inline]] static inline Vec3Of<W> arvo_direction(const Input& in, int g, const Fetch& fetch) {
   const W zero = splat<W>(0.0), one = splat<W>(1.0);
   W s, t;
   lm::sincos(at<W>(in.angle, g), s, t);
@@ -139,11 +118,11 @@ template <class W, class Fetch>
   const W uu = t - cos_alpha, vv = s + sin_alpha * fetch(in.cos_c);
   const W denominator = (vv * s + uu * t) * sin_alpha;
   const W q = lm::select(denominator != zero, lm::clamp(((vv * t - uu * s) * cos_alpha - vv) / denominator, -one, one), one);
-  const Vec3W<W> b = fetch(in.b);
-  const Vec3W<W> c_prime = combine(q, fetch(in.a), lm::sqrt(lm::max(zero, one - q * q)), fetch(in.c_perp));
+  const Vec3Of<W> b = fetch(in.b);
+  const Vec3Of<W> c_prime = combine(q, fetch(in.a), lm::sqrt(lm::max(zero, one - q * q)), fetch(in.c_perp));
   const W cosine = dot(c_prime, b);
   const W z = one - at<W>(in.v, g) * (one - cosine);
-  const Vec3W<W> across = normalize(Vec3W<W>{c_prime.x - cosine * b.x, c_prime.y - cosine * b.y, c_prime.z - cosine * b.z});
+  const Vec3Of<W> across = normalize(Vec3Of<W>{c_prime.x - cosine * b.x, c_prime.y - cosine * b.y, c_prime.z - cosine * b.z});
   return normalize(combine(z, b, lm::sqrt(lm::max(zero, one - z * z)), across));
 }
 
@@ -153,8 +132,8 @@ template <class W, template <class> class Fetch>
   using Mask = typename W::Mask;
   const Fetch<W> fetch(in, g);
   const W zero = splat<W>(0.0), one = splat<W>(1.0);
-  const Vec3W<W> point{splat<W>(in.point[0]), splat<W>(in.point[1]), splat<W>(in.point[2])};
-  const Vec3W<W> p0 = fetch(in.p0), p1 = fetch(in.p1), p2 = fetch(in.p2);
+  const Vec3Of<W> point{splat<W>(in.point[0]), splat<W>(in.point[1]), splat<W>(in.point[2])};
+  const Vec3Of<W> p0 = fetch(in.p0), p1 = fetch(in.p1), p2 = fetch(in.p2);
   const Mask by_solid_angle = mask_at<W>(in.by_solid_angle, g);
   const Mask all = zero == zero;
 
@@ -164,11 +143,11 @@ template <class W, template <class> class Fetch>
   W b1 = at<W>(in.b1, g), b2 = at<W>(in.b2, g);
   Mask valid = all;
   if (any(by_solid_angle)) {
-    const Vec3W<W> w = arvo_direction<W>(in, g, fetch);
-    const Vec3W<W> e1 = minus(p1, p0), e2 = minus(p2, p0);
-    const Vec3W<W> pv = cross(w, e2);
+    const Vec3Of<W> w = arvo_direction<W>(in, g, fetch);
+    const Vec3Of<W> e1 = minus(p1, p0), e2 = minus(p2, p0);
+    const Vec3Of<W> pv = cross(w, e2);
     const W determinant = dot(e1, pv);
-    const Vec3W<W> tv = minus(point, p0);
+    const Vec3Of<W> tv = minus(point, p0);
     W along1 = lm::clamp(dot(tv, pv) / determinant, zero, one);
     W along2 = lm::clamp(dot(w, cross(tv, e1)) / determinant, zero, one);
     const W sum = along1 + along2;
@@ -187,35 +166,35 @@ template <class W, template <class> class Fetch>
 
   // make_surface_point.
   const W w0 = one - b1 - b2;
-  const Vec3W<W> p{w0 * p0.x + b1 * p1.x + b2 * p2.x, w0 * p0.y + b1 * p1.y + b2 * p2.y, w0 * p0.z + b1 * p1.z + b2 * p2.z};
+  const Vec3Of<W> p{w0 * p0.x + b1 * p1.x + b2 * p2.x, w0 * p0.y + b1 * p1.y + b2 * p2.y, w0 * p0.z + b1 * p1.z + b2 * p2.z};
   put(out.point, g, p);
   const W largest = lm::max(lm::max(lm::abs(p.x), lm::abs(p.y)), lm::abs(p.z));
   put(out.error_bound, g,
       splat<W>(ray_offset_detail::kScaledRoundoff) * (splat<W>(std::sqrt(3.0)) * largest + fetch(in.edge_term)));
 
   // The unit direction and distance from the shading point (EmitterSampler::sample).
-  const Vec3W<W> offset = minus(p, point);
+  const Vec3Of<W> offset = minus(p, point);
   const W distance = lm::sqrt(dot(offset, offset));
   valid = valid & (distance > zero);
   put(out.distance, g, distance);
-  const Vec3W<W> direction{offset.x / distance, offset.y / distance, offset.z / distance};
+  const Vec3Of<W> direction{offset.x / distance, offset.y / distance, offset.z / distance};
   put(out.direction, g, direction);
   put<W>(out.valid, g, valid);
 
   // EmitterSampler::weigh: the solid-angle density by the view's value, or by area probability /
   // area * r^2 / cos(theta'); zero where the triangle's back faces the point.
-  const Vec3W<W> normal = fetch(in.normal);
+  const Vec3Of<W> normal = fetch(in.normal);
   put(out.normal, g, normal);
   const W cos_emitter = -dot(normal, direction);
   const Mask front = cos_emitter > zero;
   const W by_area =
       any(~by_solid_angle) ? (fetch(in.area) * cos_emitter) / ((fetch(in.probability) * distance) * distance) : zero;
-  const Vec3W<W> solid = fetch(in.solid_radiance);
+  const Vec3Of<W> solid = fetch(in.solid_radiance);
   const auto radiance = [&](const W& solid_radiance, double emission) {
     return lm::select(front, lm::select(by_solid_angle, solid_radiance, splat<W>(emission) * by_area), zero);
   };
   put(out.radiance_over_pdf, g,
-      Vec3W<W>{radiance(solid.x, in.emission[0]), radiance(solid.y, in.emission[1]), radiance(solid.z, in.emission[2])});
+      Vec3Of<W>{radiance(solid.x, in.emission[0]), radiance(solid.y, in.emission[1]), radiance(solid.z, in.emission[2])});
   put<W>(out.front, g, front);
 }
 
@@ -370,11 +349,11 @@ template <class G>
   return r;
 }
 template <class G>
-[[gnu::always_inline]] static inline Vec3W<G> group_at(const Vec3& v, int g) {
+[[gnu::always_inline]] static inline Vec3Of<G> group_at(const Vec3& v, int g) {
   return {group_at<G>(v.x, g), group_at<G>(v.y, g), group_at<G>(v.z, g)};
 }
 template <class G>
-[[gnu::always_inline]] static inline Vec3W<G> splat3(const double (&v)[3]) {
+[[gnu::always_inline]] static inline Vec3Of<G> splat3(const double (&v)[3]) {
   return {lm::Splat<G>::value(v[0]), lm::Splat<G>::value(v[1]), lm::Splat<G>::value(v[2])};
 }
 
@@ -383,11 +362,11 @@ template <class G>
 [[gnu::always_inline]] static inline void facing_group(const Shading& shading, const Chunk& chunk, int g,
                                                        FacingOutput& out, double* n_dot_h) {
   const G zero{}, one = lm::Splat<G>::value(1.0);
-  const Vec3W<G> normal = splat3<G>(shading.normal), to_eye = splat3<G>(shading.to_eye);
-  const Vec3W<G> direction = group_at<G>(chunk.out.direction, g);
+  const Vec3Of<G> normal = splat3<G>(shading.normal), to_eye = splat3<G>(shading.to_eye);
+  const Vec3Of<G> direction = group_at<G>(chunk.out.direction, g);
   const G n_dot_l = dot(normal, direction);
   lm::store(out.n_dot_l.v + g, n_dot_l);
-  const Vec3W<G> half_sum{direction.x + to_eye.x, direction.y + to_eye.y, direction.z + to_eye.z};
+  const Vec3Of<G> half_sum{direction.x + to_eye.x, direction.y + to_eye.y, direction.z + to_eye.z};
   const G half_length = lm::sqrt(dot(half_sum, half_sum));
   const G cosine = lm::select(half_length > zero, lm::max(dot(normal, half_sum) / half_length, zero), zero);
   lm::MaskOf<G> valid;
@@ -434,7 +413,7 @@ template <class G>
 [[gnu::always_inline]] static inline void emit_group(const Shading& shading, const Chunk& chunk,
                                                      const FacingOutput& facing, bool lit, int g, EmitOutput& out) {
   using ray_offset_detail::kScaledRoundoff;
-  using V = Vec3W<G>;
+  using V = Vec3Of<G>;
   const auto splat = [](double x) { return lm::Splat<G>::value(x); };
   const G zero{}, one = splat(1.0);
   const V diffuse = splat3<G>(shading.diffuse), specular = splat3<G>(shading.specular),
