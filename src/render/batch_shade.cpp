@@ -113,8 +113,7 @@ bool BatchShader::batchable(const Hit& hit) const {
   return hit.found() && !flat.is_sphere(hit.primitive) && materials_[material_of_triangle(hit.primitive)].batched;
 }
 
-void BatchShader::compute_lanes(Lanes& lanes, const std::array<Ray, kLanes>& rays,
-                                const std::array<Hit, kLanes>& hits, int depth) const {
+void BatchShader::compute_lanes(Lanes& lanes, const Ray* rays, const Hit* hits, int depth) const {
   if (lanes.count == 0) return;
   compute_surfaces(lanes, rays, hits, depth);
   lanes.lights.resize(context_.scene.lights.size());
@@ -151,19 +150,24 @@ void BatchShader::compute_emitter_views(Lanes& lanes) const {
 
 void BatchShader::prepare(std::span<const Ray> rays, std::span<const Hit> hits, std::span<const bool> unbatched,
                           Workspace& work) const {
-  std::array<Ray, kLanes> lane_rays;
-  std::array<Hit, kLanes> lane_hits;
   int count = 0;
   for (std::size_t k = 0; k < hits.size(); ++k) {
     const bool batched = !unbatched[k] && batchable(hits[k]);
-    work.lane_of[k] = static_cast<std::int8_t>(batched ? count : -1);
-    if (!batched) continue;
-    lane_rays[std::size_t(count)] = rays[k];
-    lane_hits[std::size_t(count)] = hits[k];
-    ++count;
+    work.lane_of[k] = static_cast<std::int8_t>(batched ? count++ : -1);
   }
   work.lanes.count = count;
-  compute_lanes(work.lanes, lane_rays, lane_hits, 0);
+  if (std::size_t(count) == hits.size()) {  // every hit batched: the lanes are the packet's own
+    compute_lanes(work.lanes, rays.data(), hits.data(), 0);
+    return;
+  }
+  std::array<Ray, kLanes> lane_rays;
+  std::array<Hit, kLanes> lane_hits;
+  for (std::size_t k = 0; k < hits.size(); ++k)
+    if (const int lane = work.lane_of[k]; lane >= 0) {
+      lane_rays[std::size_t(lane)] = rays[k];
+      lane_hits[std::size_t(lane)] = hits[k];
+    }
+  compute_lanes(work.lanes, lane_rays.data(), lane_hits.data(), 0);
 }
 
 void BatchShader::prefetch_triangles(std::span<const Hit> hits) const {
@@ -192,18 +196,17 @@ void BatchShader::start_block(Workspace& work) const {
   work.waves[1].clear();
 }
 
-void BatchShader::compute_surfaces(Lanes& block, const std::array<Ray, kLanes>& rays,
-                                   const std::array<Hit, kLanes>& hits, int depth) const {
+void BatchShader::compute_surfaces(Lanes& block, const Ray* rays, const Hit* hits, int depth) const {
   const FlatScene& flat = context_.flat;
   const int lanes = block.count;
   // The callers have requested the triangles and vertices some work before (prefetch_triangles,
   // prefetch_vertices).
   std::array<Vec3u, kLanes> triangles{};  // zeros past the count: never read, but the compiler cannot tell
-  for (int i = 0; i < lanes; ++i) triangles[std::size_t(i)] = flat.triangles[hits[std::size_t(i)].primitive];
-  for (int i = 0; i < lanes; ++i) block.material[std::size_t(i)] = material_of_triangle(hits[std::size_t(i)].primitive);
+  for (int i = 0; i < lanes; ++i) triangles[std::size_t(i)] = flat.triangles[hits[i].primitive];
+  for (int i = 0; i < lanes; ++i) block.material[std::size_t(i)] = material_of_triangle(hits[i].primitive);
   Gathered in;
   kernels_.gather(batch_lanes::VertexArrays{flat.positions.data(), flat.normals.data(), flat.positions.size()},
-                  triangles.data(), rays.data(), hits.data(), lanes, in);
+                  triangles.data(), rays, hits, lanes, in);
   // The materials' values at each lane; lanes past the count (up to the next multiple of 4) copy
   // lane 0's. Most packets see one material: its values are then written to every lane at once.
   const int padded = (lanes + 3) / 4 * 4;
@@ -413,7 +416,7 @@ void BatchShader::shade_wave(Workspace& work, int depth, RayCounts& counts) cons
   std::array<Hit, kLanes> lane_hits;
   std::array<std::int32_t, kLanes> lane_index;
   const auto shade_lanes = [&] {
-    compute_lanes(work.lanes, lane_rays, lane_hits, depth);
+    compute_lanes(work.lanes, lane_rays.data(), lane_hits.data(), depth);
     for (int i = 0; i < work.lanes.count; ++i) {
       Secondary& secondary = wave[std::size_t(lane_index[std::size_t(i)])];
       ImmediateSink sink{context_.accel, counts, context_.scene.lights.size(),

@@ -167,10 +167,8 @@ class BatchShader {
   // FlatScene::material_ids[triangle], from the runs below when the scene has few of them.
   std::uint32_t material_of_triangle(std::uint32_t triangle) const;
   // The arithmetic of lanes.count hits at ray depth `depth` (rays[i], hits[i] batchable).
-  void compute_lanes(Lanes& lanes, const std::array<Ray, kLanes>& rays, const std::array<Hit, kLanes>& hits,
-                     int depth) const;
-  void compute_surfaces(Lanes& lanes, const std::array<Ray, kLanes>& rays, const std::array<Hit, kLanes>& hits,
-                        int depth) const;
+  void compute_lanes(Lanes& lanes, const Ray* rays, const Hit* hits, int depth) const;
+  void compute_surfaces(Lanes& lanes, const Ray* rays, const Hit* hits, int depth) const;
   void compute_light(Lanes& lanes, std::size_t light) const;
   // lanes.emitter_views: for each of small_emitters_, the spherical triangles of the lanes that
   // will draw its samples (shade.cpp's add_area_light_terms: the emitter-level rules pass).
