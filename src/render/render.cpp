@@ -107,11 +107,11 @@ class BlockShadows {
   std::vector<std::uint8_t> grouped_blocked_;
 };
 
-// Copies a w x h tile (`colors`, `pitch` pixels a row) to image pixels from (x, y) with
-// non-temporal stores: the image is not read again while rendering, so its 12 bytes a pixel need
-// not pass through the caches (and evict the scene's data) on the way to memory. Fenced, so that
-// another thread reading the tile after a later synchronisation sees it.
-void stream_tile(const std::vector<Color>& colors, int pitch, int x, int y, int w, int h, Image& image) {
+// Copies a w x h block of pixels (`colors`, `pitch` pixels a row) to image pixels from (x, y)
+// with non-temporal stores: the image is not read again while rendering, so its 12 bytes a pixel
+// need not pass through the caches (and evict the scene's data) on the way to memory. Fenced, so
+// that another thread reading them after a later synchronisation sees them.
+void stream_block(const Color* colors, int pitch, int x, int y, int w, int h, Image& image) {
   static_assert(sizeof(Color) == 3 * sizeof(float));
   for (int row = 0; row < h; ++row) {
     auto* to = reinterpret_cast<unsigned char*>(&image.at(x, y + row));
@@ -207,10 +207,9 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
     std::array<std::uint64_t, kBlockPixels> ticks{};
     std::uint64_t non_finite = 0;
     std::uint64_t first_non_finite = ~std::uint64_t(0);  // row-major pixel index
-    // The colours of the tile being rendered (row-major, `tile` pixels a row), whose top-left pixel
-    // is (tile_x0, tile_y0) in image coordinates; written to the image once the tile is done.
-    std::vector<Color> tile_colors;
-    int tile_x0 = 0, tile_y0 = 0;
+    // The colours of the block being rendered (row-major, kBlock pixels a row), streamed into the
+    // image once the block is done: a small buffer that stays in the cache from block to block.
+    std::array<Color, kBlockPixels> block_colors;
   };
   tbb::enumerable_thread_specific<ThreadState> thread_states;
   std::atomic<int> tiles_done{0};
@@ -361,22 +360,27 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
         }
       }
 
+      // The block's colours. What the loop reads of the state is held in locals, so that it is not
+      // reloaded after every store of a colour.
+      Color* const block_colors = state.block_colors.data();
+      const std::span<const std::uint8_t> blocked = state.shadows.blocked;
+      const bool store_colors = spp == 1 || one_sample;
       for (int k = 0; k < n; ++k) {
         const std::uint64_t start = timed[k] ? __rdtsc() : 0;
         const std::uint64_t pixel = std::uint64_t(ys[k]) * std::uint64_t(width) + std::uint64_t(xs[k]);
-        const Color c = guarded(pixel_of[k] < 0 ? batch.background()
-                                                : finish_camera_hit(pending, std::size_t(pixel_of[k]), state.shadows.blocked),
-                                state, pixel);
-        if (spp == 1 || one_sample)
-          state.tile_colors[std::size_t((ys[k] - state.tile_y0) * tile + xs[k] - state.tile_x0)] = c;
+        const Color c = guarded(
+            pixel_of[k] < 0 ? batch.background() : finish_camera_hit(pending, std::size_t(pixel_of[k]), blocked), state,
+            pixel);
+        if (store_colors)
+          block_colors[(ys[k] - by0) * kBlock + xs[k] - bx0] = c;
         else
           sums[k] += Vec3d(c);
         if (timed[k]) counts.loop_ticks += ticks[k] + (__rdtsc() - start);
       }
     }
     if (spp > 1 && !one_sample)
-      for (int k = 0; k < n; ++k)
-        state.tile_colors[std::size_t((ys[k] - state.tile_y0) * tile + xs[k] - state.tile_x0)] = Color(sums[k] / double(spp));
+      for (int k = 0; k < n; ++k) state.block_colors[std::size_t((ys[k] - by0) * kBlock + xs[k] - bx0)] = Color(sums[k] / double(spp));
+    stream_block(state.block_colors.data(), kBlock, bx0 - region.x0, by0 - region.y0, bx1 - bx0, by1 - by0, result.image);
     counts.camera += std::uint64_t(end_sample - first_sample) * std::uint64_t(n);
   };
 
@@ -387,9 +391,6 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
       const int x0 = region.x0 + (t % tiles_x) * tile, y0 = region.y0 + (t / tiles_x) * tile;
       const int x1 = std::min(x0 + tile, region.x1), y1 = std::min(y0 + tile, region.y1);
       bool abandoned = false;
-      state.tile_colors.resize(std::size_t(tile) * std::size_t(tile));
-      state.tile_x0 = x0;
-      state.tile_y0 = y0;
       for (int by = y0; by < y1 && !abandoned; by += kBlock) {
         if (cancelled()) {
           abandoned = true;
@@ -403,7 +404,6 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
           for (int x = x0; x < x1; ++x) result.image.at(x - region.x0, y - region.y0) = Color(0.0f);
         continue;
       }
-      stream_tile(state.tile_colors, tile, x0 - region.x0, y0 - region.y0, x1 - x0, y1 - y0, result.image);
       result.tile_done[std::size_t(t)] = 1;
       const int done = ++tiles_done;
       if (done == 1)

@@ -655,15 +655,4 @@ void shade_camera_hit(const ShadingContext& context, const Ray& ray, const Hit& 
   pending.pixels.push_back(shadows.pixel);
 }
 
-Color finish_camera_hit(const PendingShading& pending, std::size_t pixel, std::span<const std::uint8_t> blocked) {
-  const PendingShading::Pixel& p = pending.pixels[pixel];
-  Vec3d radiance = p.emission;
-  for (std::uint32_t i = p.first_term; i < p.first_term + p.term_count; ++i) {
-    const PendingShading::Term& t = pending.terms[i];
-    if (t.query == PendingShading::kNoQuery || !blocked[t.query]) radiance += t.term;
-  }
-  if (p.has_reflection) radiance += p.reflection;
-  return Color(radiance);
-}
-
 }  // namespace rt

@@ -131,7 +131,17 @@ void shade_camera_hit(const ShadingContext& context, const Ray& ray, const Hit& 
                       RayCounts& counts, PendingShading& pending);
 
 // The colour of pending pixel `pixel`; blocked[i] answers pending.shadow_rays[i] (1: occluded).
-Color finish_camera_hit(const PendingShading& pending, std::size_t pixel, std::span<const std::uint8_t> blocked);
+// Inline: render_image calls it once per pixel.
+inline Color finish_camera_hit(const PendingShading& pending, std::size_t pixel, std::span<const std::uint8_t> blocked) {
+  const PendingShading::Pixel& p = pending.pixels[pixel];
+  Vec3d radiance = p.emission;
+  for (std::uint32_t i = p.first_term; i < p.first_term + p.term_count; ++i) {
+    const PendingShading::Term& t = pending.terms[i];
+    if (t.query == PendingShading::kNoQuery || !blocked[t.query]) radiance += t.term;
+  }
+  if (p.has_reflection) radiance += p.reflection;
+  return Color(radiance);
+}
 
 // find_color for a ray whose closest hit `hit` is already known (camera rays traced together by
 // Accel::intersect_coherent): the same colour, the same counts except the closest-hit query's ticks.
