@@ -14,6 +14,7 @@
 
 #include <cstdint>
 #include <cstring>
+#include <type_traits>
 
 namespace rt::lane_math {
 
@@ -281,29 +282,6 @@ RT_LANE_INLINE void store(float* p, const F4& v) {
   _mm_storeu_ps(p, v);
 }
 
-RT_LANE_INLINE D4& operator+=(D4& a, const D4& b) {
-  return a = a + b;
-}
-RT_LANE_INLINE D4& operator-=(D4& a, const D4& b) {
-  return a = a - b;
-}
-RT_LANE_INLINE D4& operator*=(D4& a, const D4& b) {
-  return a = a * b;
-}
-RT_LANE_INLINE D4& operator/=(D4& a, const D4& b) {
-  return a = a / b;
-}
-
-// std::max(a, b) = (a < b) ? b : a, NaN operands included (maxpd differs there).
-RT_LANE_INLINE D4 max(const D4& a, const D4& b) {
-  return select(a < b, b, a);
-}
-
-// std::clamp(v, lo, hi) = v < lo ? lo : hi < v ? hi : v.
-RT_LANE_INLINE D4 clamp(const D4& v, const D4& lo, const D4& hi) {
-  return select(v < lo, lo, select(hi < v, hi, v));
-}
-
 // a == b: false where either is NaN, as scalar == is.
 RT_LANE_INLINE M4 operator==(const D4& a, const D4& b) {
   return ~(a != b);
@@ -326,13 +304,6 @@ RT_LANE_INLINE D4 lookup(const double* table, const Lookup& l) {
   return v;
 }
 #endif
-
-// Round to the nearest integer, ties to even, for |x| < 2^51: adding and subtracting 1.5 * 2^52
-// leaves no fraction bits (the round-to-nearest of the addition does the rounding).
-RT_LANE_INLINE D4 round_to_integer(const D4& x) {
-  const D4 shift = broadcast(0x1.8p52);
-  return (x + shift) - shift;
-}
 
 // ray_offset_detail::round_away per lane: p rounded to float32 and, where rounding moved it against
 // `away`, one float further along `away`. next_float's step on the bits: +1 moves a positive float
@@ -391,18 +362,6 @@ RT_LANE_BINARY(-, _mm512_sub_pd)
 RT_LANE_BINARY(*, _mm512_mul_pd)
 RT_LANE_BINARY(/, _mm512_div_pd)
 #undef RT_LANE_BINARY
-RT_LANE_INLINE D8& operator+=(D8& a, const D8& b) {
-  return a = a + b;
-}
-RT_LANE_INLINE D8& operator-=(D8& a, const D8& b) {
-  return a = a - b;
-}
-RT_LANE_INLINE D8& operator*=(D8& a, const D8& b) {
-  return a = a * b;
-}
-RT_LANE_INLINE D8& operator/=(D8& a, const D8& b) {
-  return a = a / b;
-}
 RT_LANE_INLINE D8 operator-(const D8& a) {
   return {_mm512_xor_pd(a.v, _mm512_set1_pd(-0.0))};
 }
@@ -441,16 +400,6 @@ RT_LANE_INLINE D8 abs(const D8& v) {
 RT_LANE_INLINE D8 sqrt(const D8& v) {
   return {_mm512_maskz_sqrt_pd(0xFF, v.v)};
 }
-RT_LANE_INLINE D8 max(const D8& a, const D8& b) {
-  return select(a < b, b, a);
-}
-RT_LANE_INLINE D8 clamp(const D8& v, const D8& lo, const D8& hi) {
-  return select(v < lo, lo, select(hi < v, hi, v));
-}
-RT_LANE_INLINE D8 round_to_integer(const D8& x) {
-  const D8 shift{_mm512_set1_pd(0x1.8p52)};
-  return (x + shift) - shift;
-}
 
 RT_LANE_INLINE D8 bit_and(const D8& a, const D8& b) {
   return {_mm512_and_pd(a.v, b.v)};
@@ -481,7 +430,7 @@ RT_LANE_INLINE void store(float* p, const F8& v) {
   _mm256_storeu_ps(p, v);
 }
 
-// round_away (D4's, below) for eight lanes: the step on the float's bits is +1 where rounding
+// round_away (D4's, above) for eight lanes: the step on the float's bits is +1 where rounding
 // moved p against a positive `away` (up), -1 where against a negative one (down), negated where
 // the float is negative ((s ^ n) - n, n all ones there).
 RT_LANE_INLINE F8 round_away(const D8& p, const D8& away) {
@@ -511,7 +460,6 @@ RT_LANE_INLINE D8 lookup(const double* table, const Lookup8& l) {
 }  // namespace RT_LANE_NAMESPACE
 #endif
 
-
 inline namespace RT_LANE_NAMESPACE {
 
 // The mask type of a group G's comparisons (M4 or M8).
@@ -535,6 +483,59 @@ struct Splat<D8> {
   }
 };
 #endif
+
+// Whether G is a group of lanes (D4, or D8 in the AVX-512 build), for the operations below.
+template <class G>
+inline constexpr bool kIsGroup = std::is_same_v<G, D4>
+#ifdef __AVX512F__
+                                 || std::is_same_v<G, D8>
+#endif
+    ;
+
+// a op= b.
+template <class G>
+  requires kIsGroup<G>
+RT_LANE_INLINE G& operator+=(G& a, const G& b) {
+  return a = a + b;
+}
+template <class G>
+  requires kIsGroup<G>
+RT_LANE_INLINE G& operator-=(G& a, const G& b) {
+  return a = a - b;
+}
+template <class G>
+  requires kIsGroup<G>
+RT_LANE_INLINE G& operator*=(G& a, const G& b) {
+  return a = a * b;
+}
+template <class G>
+  requires kIsGroup<G>
+RT_LANE_INLINE G& operator/=(G& a, const G& b) {
+  return a = a / b;
+}
+
+// std::max(a, b) = (a < b) ? b : a, NaN operands included (maxpd differs there).
+template <class G>
+  requires kIsGroup<G>
+RT_LANE_INLINE G max(const G& a, const G& b) {
+  return select(a < b, b, a);
+}
+
+// std::clamp(v, lo, hi) = v < lo ? lo : hi < v ? hi : v.
+template <class G>
+  requires kIsGroup<G>
+RT_LANE_INLINE G clamp(const G& v, const G& lo, const G& hi) {
+  return select(v < lo, lo, select(hi < v, hi, v));
+}
+
+// Round to the nearest integer, ties to even, for |x| < 2^51: adding and subtracting 1.5 * 2^52
+// leaves no fraction bits (the round-to-nearest of the addition does the rounding).
+template <class G>
+  requires kIsGroup<G>
+RT_LANE_INLINE G round_to_integer(const G& x) {
+  const G shift = Splat<G>::value(0x1.8p52);
+  return (x + shift) - shift;
+}
 
 // Three-vectors of lanes (world space, double) and glm's operations on them, with glm's order of
 // operations; V is a group (D4, D8) or lane_libm.h's Wide. Their layout differs between the
