@@ -1,13 +1,13 @@
 #pragma once
-// Elementary functions over four double lanes (lane_math.h's D4), for the area lights' per-sample
-// path: the same IEEE operations in the same order in the SSE2 and the AVX2 build (no FMA), so a
-// lane gives the same bits on every x86-64 CPU, and a scalar caller that puts its argument in a
-// lane (sampling.cpp) gets the lanes' bits. Within 1 ulp of glibc, not bit for bit (binary
-// powering for whole exponents: within (n - 1) 2^-53 relative of the exact power): the error
-// bounds are asserted in tests/test_area_lights.cpp and what they do to images is in
-// docs/performance.md. The polynomials and the argument reduction are fdlibm's (Sun Microsystems,
-// 1993, freely distributable; as in musl's __sin, __cos and __rem_pio2, and fdlibm's e_pow.c,
-// e_atan2.c and s_atan.c).
+// Elementary functions over double lanes (lane_math.h's D4, and D8 in the AVX-512 build), for the
+// area lights' per-sample path: the same IEEE operations in the same order in the SSE2, AVX2 and
+// AVX-512 builds (no FMA), so a lane gives the same bits on every x86-64 CPU, and a scalar caller
+// that puts its argument in a lane (sampling.cpp) gets the lanes' bits. Within 1 ulp of glibc, not
+// bit for bit (binary powering for whole exponents: within (n - 1) 2^-53 relative of the exact
+// power): the error bounds are asserted in tests/test_area_lights.cpp and what they do to images
+// is in docs/performance.md. The polynomials and the argument reduction are fdlibm's (Sun
+// Microsystems, 1993, freely distributable; as in musl's __sin, __cos and __rem_pio2, and
+// fdlibm's e_pow.c, e_atan2.c and s_atan.c).
 
 #include <cmath>
 #include <cstdint>
