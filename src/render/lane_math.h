@@ -537,6 +537,31 @@ RT_LANE_INLINE G round_to_integer(const G& x) {
   return (x + shift) - shift;
 }
 
+// f(G{}, g) for each group G of lanes 0 .. count - 1, g its first lane: D8 (eight lanes) while
+// eight remain in the AVX-512 build, then D4 (four, the last one possibly past `count`).
+template <class F>
+RT_LANE_INLINE void for_each_group(int count, const F& f) {
+  int g = 0;
+#ifdef __AVX512F__
+  for (; g + 8 <= count; g += 8) f(D8{}, g);
+#endif
+  for (; g < count; g += 4) f(D4{}, g);
+}
+
+// Whether the CPU runs the build this file is compiled in (AVX-512 F, DQ and VL; AVX2; SSE2, which
+// every x86-64 has).
+RT_LANE_INLINE bool cpu_runs_this_build() {
+  __builtin_cpu_init();  // idempotent; needed when called before the constructors have run
+#if defined(__AVX512F__)
+  return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") &&
+         __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx2");
+#elif defined(__AVX2__)
+  return __builtin_cpu_supports("avx2");
+#else
+  return true;
+#endif
+}
+
 // Three-vectors of lanes (world space, double) and glm's operations on them, with glm's order of
 // operations; V is a group (D4, D8) or lane_libm.h's Wide. Their layout differs between the
 // implementations, so they live in each one's inline namespace.

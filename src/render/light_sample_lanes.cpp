@@ -225,11 +225,7 @@ template <class G>
 }
 
 void choose(Input& in, int count, std::uint32_t* triangle) {
-  int g = 0;
-#ifdef RT_LIGHT_SAMPLE_LANES_AVX512
-  for (; g + 8 <= count; g += 8) choose_group<lm::D8>(in, g, triangle);
-#endif
-  for (; g < count; g += 4) choose_group<D4>(in, g, triangle);
+  lm::for_each_group(count, [&](auto group, int g) { choose_group<decltype(group)>(in, g, triangle); });
 }
 
 // The lanes in use, as many groups at a time as the build's registers hold: 16 lanes in two zmm
@@ -377,12 +373,8 @@ template <class G>
 void facing(const Shading& shading, const Chunk& chunk, FacingOutput& out) {
   alignas(64) double n_dot_h[kLanes];
   const int used = groups_in_use(chunk);
-  int g = 0;
-#ifdef RT_LIGHT_SAMPLE_LANES_AVX512
-  for (; g + 8 <= used; g += 8) facing_group<lm::D8>(shading, chunk, g, out, n_dot_h);
-#endif
-  for (; g < used; g += 4) facing_group<D4>(shading, chunk, g, out, n_dot_h);
-  for (g = used; g < kLanes; ++g) n_dot_h[g] = 1.0;
+  lm::for_each_group(used, [&](auto group, int g) { facing_group<decltype(group)>(shading, chunk, g, out, n_dot_h); });
+  for (int g = used; g < kLanes; ++g) n_dot_h[g] = 1.0;
   if (shading.highlights)
     powers(n_dot_h, shading.shininess, out.power.v);
   else
@@ -473,12 +465,8 @@ template <class G>
 }
 
 void emit(const Shading& shading, const Chunk& chunk, const FacingOutput& facing, bool lit, EmitOutput& out) {
-  const int used = groups_in_use(chunk);
-  int g = 0;
-#ifdef RT_LIGHT_SAMPLE_LANES_AVX512
-  for (; g + 8 <= used; g += 8) emit_group<lm::D8>(shading, chunk, facing, lit, g, out);
-#endif
-  for (; g < used; g += 4) emit_group<D4>(shading, chunk, facing, lit, g, out);
+  lm::for_each_group(groups_in_use(chunk),
+                     [&](auto group, int g) { emit_group<decltype(group)>(shading, chunk, facing, lit, g, out); });
 }
 
 }  // namespace (baseline, avx2 or avx512)
@@ -487,17 +475,13 @@ void emit(const Shading& shading, const Chunk& chunk, const FacingOutput& facing
 const Kernels* avx512_kernels() {
   static const Kernels kernels{&avx512::choose, &avx512::sample, &avx512::powers, &avx512::spherical,
                                &avx512::facing, &avx512::emit, &avx512::set_origins};
-  __builtin_cpu_init();  // idempotent; needed when called before the constructors have run
-  const bool has = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") &&
-                   __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx2");
-  return has ? &kernels : nullptr;
+  return lane_math::cpu_runs_this_build() ? &kernels : nullptr;
 }
 #elif defined(RT_LIGHT_SAMPLE_LANES_AVX2)
 const Kernels* avx2_kernels() {
   static const Kernels kernels{&avx2::choose, &avx2::sample, &avx2::powers, &avx2::spherical,
                                &avx2::facing, &avx2::emit, &avx2::set_origins};
-  __builtin_cpu_init();  // idempotent; needed when called before the constructors have run
-  return __builtin_cpu_supports("avx2") ? &kernels : nullptr;
+  return lane_math::cpu_runs_this_build() ? &kernels : nullptr;
 }
 #else
 const Kernels& baseline_kernels() {
