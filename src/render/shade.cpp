@@ -204,6 +204,52 @@ void apply_emission_texture(const EmitterSampler& sampler, const light_sample_la
     }
 }
 
+// What ShadowRecorder's query and lit append for the samples of one chunk (add_area_light_terms'
+// loop over them below), with the same records in the same order and the same counts, written in
+// one pass: the buffers grow once for the chunk rather than once per record.
+void record_chunk(ShadowRecorder& recorder, std::size_t slot, const light_sample_lanes::Chunk& chunk,
+                  const light_sample_lanes::EmitOutput& emitted, bool prune) {
+  PendingShading& pending = recorder.pending;
+  const std::size_t first_term = pending.terms.size(), first_ray = pending.shadow_rays.size();
+  pending.terms.resize(first_term + std::size_t(chunk.count));
+  pending.shadow_rays.resize(first_ray + std::size_t(chunk.count));
+  PendingShading::Term* const terms = pending.terms.data() + first_term;
+  Ray* const rays = pending.shadow_rays.data() + first_ray;
+  std::size_t term_count = 0, ray_count = 0;
+  std::uint64_t on_surface = 0, zero = 0;
+  for (int k = 0; k < chunk.count; ++k) {
+    if (!chunk.out.valid[k]) {
+      ++on_surface;
+      continue;
+    }
+    const Vec3d term(emitted.term.x.v[k], emitted.term.y.v[k], emitted.term.z.v[k]);
+    if (prune && term == Vec3d(0.0)) {
+      ++zero;
+      continue;
+    }
+    PendingShading::Term& t = terms[term_count++];
+    t.term = term;
+    if (emitted.tfar[k] > 0.0f) {
+      t.query = static_cast<std::uint32_t>(first_ray + ray_count);
+      Ray& ray = rays[ray_count++];
+      ray.origin = {emitted.origin.x[k], emitted.origin.y[k], emitted.origin.z[k]};
+      ray.direction = {emitted.direction.x[k], emitted.direction.y[k], emitted.direction.z[k]};
+      ray.tnear = 0.0f;
+      ray.tfar = emitted.tfar[k];
+    } else {
+      t.query = PendingShading::kNoQuery;
+      ++on_surface;
+    }
+  }
+  pending.terms.resize(first_term + term_count);
+  pending.shadow_rays.resize(first_ray + ray_count);
+  pending.shadow_lights.resize(first_ray + ray_count, static_cast<std::uint32_t>(slot));
+  RayCounts& counts = recorder.counts;
+  counts.skipped[static_cast<int>(SkipRule::sample_on_surface)] += on_surface;
+  counts.skipped[static_cast<int>(SkipRule::sample_zero)] += zero;
+  if (ray_count > 0) counts.add_shadow_query(recorder.light_count, slot, ray_count);
+}
+
 // The area lights' terms at a hit, in emitter order, each emitter's light_samples samples in
 // pattern order: term_k = L_e,k / pdf_k (C_d n.l_k + C_s max(n.h_k, 0)^sigma) / (pi N) where
 // n.l_k > 0, shadowed by its own ray. The emitter-level rules (unlit material, behind a planar
@@ -266,6 +312,11 @@ template <class Shadows>
       kernels.facing(shading, chunk, factors);
       if (!all_zero && sampler.has_emission_texture()) apply_emission_texture(sampler, factors, chunk);
       kernels.emit(shading, chunk, factors, !all_zero, emitted);
+      if constexpr (std::is_base_of_v<ShadowRecorder, Shadows>)
+        if (!context.trace) {
+          record_chunk(shadows, slot, chunk, emitted, prune);
+          continue;
+        }
       for (int k = 0; k < chunk.count; ++k) {
         if (!chunk.out.valid[k]) {
           skip(SkipRule::sample_on_surface, e, 1);

@@ -45,15 +45,15 @@ struct RayCounts {
   std::uint64_t loop_ticks = 0;
 
   std::uint64_t total() const { return camera + shadow + reflection + refraction + see_through + area_light; }
-  // Counts one shadow query towards light slot `slot` (`ticks` of it when timed): slots
+  // Counts `amount` shadow queries towards light slot `slot` (`ticks` of one when timed): slots
   // 0 .. light_count - 1 are Scene::lights, the next ones the emitters of EffectsPlan::area_lights.
-  void add_shadow_query(std::size_t light_count, std::size_t slot) {  // inline: once per shadow ray
+  void add_shadow_query(std::size_t light_count, std::size_t slot, std::uint64_t amount = 1) {  // inline: per ray
     const bool point = slot < light_count;
     std::vector<std::uint64_t>& per = point ? shadow_per_light : area_light_per_emitter;
     const std::size_t index = point ? slot : slot - light_count;
-    ++(point ? shadow : area_light);
+    (point ? shadow : area_light) += amount;
     if (per.size() <= index) per.resize(index + 1, 0);
-    ++per[index];
+    per[index] += amount;
   }
   void add_shadow_ticks(std::size_t light_count, std::size_t slot, std::uint64_t ticks);
   std::uint64_t skipped_total() const;
