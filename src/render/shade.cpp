@@ -1,6 +1,7 @@
 #include "rt/render/shade.h"
 
 #include <algorithm>
+#include <bit>
 #include <array>
 #include <cmath>
 #include <numbers>
@@ -204,49 +205,67 @@ void apply_emission_texture(const EmitterSampler& sampler, const light_sample_la
     }
 }
 
+// The set bits of x: std::popcount without the library call it compiles to where the baseline
+// build lacks the POPCNT instruction.
+std::uint32_t count_bits(std::uint32_t x) {
+  x -= (x >> 1) & 0x55555555u;
+  x = (x & 0x33333333u) + ((x >> 2) & 0x33333333u);
+  return (((x + (x >> 4)) & 0x0F0F0F0Fu) * 0x01010101u) >> 24;
+}
+
 // What ShadowRecorder's query and lit append for the samples of one chunk (add_area_light_terms'
 // loop over them below), with the same records in the same order and the same counts, written in
-// one pass: the buffers grow once for the chunk rather than once per record.
+// one pass: the rules are evaluated for all lanes at once as bit masks (lane k: bit k), and the
+// buffers grow once for the chunk rather than once per record.
 void record_chunk(ShadowRecorder& recorder, std::size_t slot, const light_sample_lanes::Chunk& chunk,
                   const light_sample_lanes::EmitOutput& emitted, bool prune) {
+  static_assert(light_sample_lanes::kLanes % 4 == 0 && light_sample_lanes::kLanes <= 32);
+  // Lanes past chunk.count are read (the arrays hold kLanes) but masked off.
+  std::uint32_t valid = 0, nonzero = 0, positive = 0;
+  const __m128d zero = _mm_setzero_pd();
+  for (int k = 0; k < chunk.count; k += 2) {
+    valid |= std::uint32_t(_mm_movemask_pd(_mm_load_pd(reinterpret_cast<const double*>(&chunk.out.valid[k])))) << k;
+    // Not equal, unordered: a NaN component counts as non-zero, as !(term == Vec3d(0.0)) has it.
+    const __m128d any = _mm_or_pd(_mm_or_pd(_mm_cmpneq_pd(_mm_load_pd(&emitted.term.x.v[k]), zero),
+                                            _mm_cmpneq_pd(_mm_load_pd(&emitted.term.y.v[k]), zero)),
+                                  _mm_cmpneq_pd(_mm_load_pd(&emitted.term.z.v[k]), zero));
+    nonzero |= std::uint32_t(_mm_movemask_pd(any)) << k;
+  }
+  for (int k = 0; k < chunk.count; k += 4)
+    positive |= std::uint32_t(_mm_movemask_ps(_mm_cmpgt_ps(_mm_load_ps(&emitted.tfar[k]), _mm_setzero_ps()))) << k;
+  const std::uint32_t in_use = chunk.count == 32 ? ~0u : (1u << chunk.count) - 1;
+  valid &= in_use;
+  const std::uint32_t kept = prune ? valid & nonzero : valid;  // a term is recorded
+  const std::uint32_t traced = kept & positive;                // with its shadow ray
+
+  const std::uint32_t valid_count = count_bits(valid), kept_count = count_bits(kept), ray_count = count_bits(traced);
+
   PendingShading& pending = recorder.pending;
   const std::size_t first_term = pending.terms.size(), first_ray = pending.shadow_rays.size();
-  pending.terms.resize(first_term + std::size_t(chunk.count));
-  pending.shadow_rays.resize(first_ray + std::size_t(chunk.count));
-  PendingShading::Term* const terms = pending.terms.data() + first_term;
-  Ray* const rays = pending.shadow_rays.data() + first_ray;
-  std::size_t term_count = 0, ray_count = 0;
-  std::uint64_t on_surface = 0, zero = 0;
-  for (int k = 0; k < chunk.count; ++k) {
-    if (!chunk.out.valid[k]) {
-      ++on_surface;
-      continue;
-    }
-    const Vec3d term(emitted.term.x.v[k], emitted.term.y.v[k], emitted.term.z.v[k]);
-    if (prune && term == Vec3d(0.0)) {
-      ++zero;
-      continue;
-    }
-    PendingShading::Term& t = terms[term_count++];
-    t.term = term;
-    if (emitted.tfar[k] > 0.0f) {
-      t.query = static_cast<std::uint32_t>(first_ray + ray_count);
-      Ray& ray = rays[ray_count++];
-      ray.origin = {emitted.origin.x[k], emitted.origin.y[k], emitted.origin.z[k]};
-      ray.direction = {emitted.direction.x[k], emitted.direction.y[k], emitted.direction.z[k]};
-      ray.tnear = 0.0f;
-      ray.tfar = emitted.tfar[k];
-    } else {
-      t.query = PendingShading::kNoQuery;
-      ++on_surface;
-    }
-  }
-  pending.terms.resize(first_term + term_count);
+  pending.terms.resize(first_term + kept_count);
   pending.shadow_rays.resize(first_ray + ray_count);
   pending.shadow_lights.resize(first_ray + ray_count, static_cast<std::uint32_t>(slot));
+  PendingShading::Term* term = pending.terms.data() + first_term;
+  Ray* ray = pending.shadow_rays.data() + first_ray;
+  auto query = static_cast<std::uint32_t>(first_ray);
+  for (std::uint32_t lanes = kept; lanes != 0; lanes &= lanes - 1, ++term) {
+    const int k = std::countr_zero(lanes);
+    term->term = Vec3d(emitted.term.x.v[k], emitted.term.y.v[k], emitted.term.z.v[k]);
+    if (((traced >> k) & 1u) == 0) {
+      term->query = PendingShading::kNoQuery;
+      continue;
+    }
+    term->query = query++;
+    ray->origin = {emitted.origin.x[k], emitted.origin.y[k], emitted.origin.z[k]};
+    ray->direction = {emitted.direction.x[k], emitted.direction.y[k], emitted.direction.z[k]};
+    ray->tnear = 0.0f;
+    ray->tfar = emitted.tfar[k];
+    ++ray;
+  }
   RayCounts& counts = recorder.counts;
-  counts.skipped[static_cast<int>(SkipRule::sample_on_surface)] += on_surface;
-  counts.skipped[static_cast<int>(SkipRule::sample_zero)] += zero;
+  counts.skipped[static_cast<int>(SkipRule::sample_on_surface)] +=
+      std::uint64_t(std::uint32_t(chunk.count) - valid_count + kept_count - ray_count);
+  counts.skipped[static_cast<int>(SkipRule::sample_zero)] += valid_count - kept_count;
   if (ray_count > 0) counts.add_shadow_query(recorder.light_count, slot, ray_count);
 }
 
