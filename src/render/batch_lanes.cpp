@@ -268,9 +268,10 @@ template <class G>
   const G hr = lm::select(highlight, specular.x * pw, zero),
           hg = lm::select(highlight, specular.y * pw, zero),
           hb = lm::select(highlight, specular.z * pw, zero);
-  lm::store(out.term, g,
-            V3<G>{in.x * (ambient.x + diffuse.x * ndl + hr), in.y * (ambient.y + diffuse.y * ndl + hg),
-                  in.z * (ambient.z + diffuse.z * ndl + hb)});
+  const V3<G> term{in.x * (ambient.x + diffuse.x * ndl + hr), in.y * (ambient.y + diffuse.y * ndl + hg),
+                   in.z * (ambient.z + diffuse.z * ndl + hb)};
+  lm::store(out.term, g, term);
+  lm::store(out.zero_term + g, (term.x == zero) & (term.y == zero) & (term.z == zero));
 }
 
 void surfaces(const Gathered& in, const OriginPolicy& policy, Lanes& block) {

@@ -45,6 +45,7 @@ Vec3d lane(const V& v, int i) {
 
 BatchShader::BatchShader(const ShadingContext& context)
     : context_(context),
+      light_count_(context.scene.lights.size()),
       kernels_(batch_lanes::best_kernels()),
       origin_policy_{context.ray_offset.mode == RayOffset::Mode::fixed, context.ray_offset.epsilon},
       background_(context.scene.settings.background) {
@@ -84,6 +85,7 @@ BatchShader::BatchShader(const ShadingContext& context)
     plain.diffuse = Vec3d(material.diffuse);
     plain.specular = Vec3d(material.specular);
     plain.reflective = Vec3d(material.reflective.value_or(material.specular));
+    plain.reflects_light = plain.reflects && plain.reflective != Vec3d(0.0);
     plain.emission = Vec3d(material.emission);
     enabled_ = enabled_ || plain.batched;
   }
@@ -228,13 +230,13 @@ void BatchShader::compute_surfaces(Lanes& block, const Ray* rays, const Hit* hit
     const PlainMaterial& plain = materials_[first_material];
     for (int i = 0; i < kLanes; ++i) put_material(i, plain);
     block.highlights = plain.highlight;
-    reflecting = plain.reflects && plain.reflective != Vec3d(0.0);
+    reflecting = plain.reflects_light;
   } else {
     for (int i = 0; i < padded; ++i) {
       const PlainMaterial& plain = materials_[block.material[std::size_t(i < lanes ? i : 0)]];
       put_material(i, plain);
       block.highlights = block.highlights || plain.highlight;
-      reflecting = reflecting || (plain.reflects && plain.reflective != Vec3d(0.0));
+      reflecting = reflecting || plain.reflects_light;
     }
   }
   // What shade_lane reads to make a reflection ray: computed unless no lane can make one.
@@ -306,7 +308,7 @@ std::int32_t BatchShader::shade_lane(const Lanes& lanes, int i, int depth, const
   const auto skip = [&](SkipRule rule) { ++counts.skipped[static_cast<int>(rule)]; };
   count_at(counts.hits_per_depth, std::size_t(depth));
 
-  for (std::size_t j = 0; j < context_.scene.lights.size(); ++j) {
+  for (std::size_t j = 0; j < light_count_; ++j) {
     const LightPlan& light_plan = plan.lights[j];
     if (!light_plan.contributes) {
       skip(SkipRule::light_off);
@@ -317,11 +319,11 @@ std::int32_t BatchShader::shade_lane(const Lanes& lanes, int i, int depth, const
       skip(SkipRule::light_on_surface);
       continue;
     }
-    const Vec3d term = lane(light.term, i);
-    if (prune && term == Vec3d(0.0)) {
+    if (prune && light.zero_term[i] != 0) {
       skip(SkipRule::zero_contribution);
       continue;
     }
+    const Vec3d term = lane(light.term, i);
     if (plan.options.min_light_contribution > 0.0 && max_channel(term) < plan.options.min_light_contribution) {
       skip(SkipRule::dim_light);
       continue;
@@ -359,7 +361,7 @@ std::int32_t BatchShader::shade_lane(const Lanes& lanes, int i, int depth, const
   if (depth >= context_.scene.settings.max_depth) return -1;
   const Vec3d& reflective = plain.reflective;
   const Vec3d next_throughput = throughput * reflective;
-  if (prune && (!plain.reflects || reflective == Vec3d(0.0))) {
+  if (prune && !plain.reflects_light) {
     skip(SkipRule::black_reflection);
     return -1;
   }
@@ -392,7 +394,7 @@ void BatchShader::finish_camera_hit(Workspace& work, int k, const Ray& ray, cons
   PendingShading::Pixel& pixel = pending.pixels.emplace_back();  // in place: see PixelCentreRays::set_ray
   pixel.emission = materials_[work.lanes.material[std::size_t(i)]].emission;
   pixel.first_term = static_cast<std::uint32_t>(pending.terms.size());
-  ShadowRecorder sink{pending, counts, context_.scene.lights.size()};
+  ShadowRecorder sink{pending, counts, light_count_};
   shade_lane(work.lanes, i, 0, ray, hit, Vec3d(1.0), path_seed, index, counts, sink, work.waves[1]);
   pixel.term_count = static_cast<std::uint32_t>(pending.terms.size()) - pixel.first_term;
 }
@@ -419,7 +421,7 @@ void BatchShader::shade_wave(Workspace& work, int depth, RayCounts& counts) cons
     compute_lanes(work.lanes, lane_rays.data(), lane_hits.data(), depth);
     for (int i = 0; i < work.lanes.count; ++i) {
       Secondary& secondary = wave[std::size_t(lane_index[std::size_t(i)])];
-      ImmediateSink sink{context_.accel, counts, context_.scene.lights.size(),
+      ImmediateSink sink{context_.accel, counts, light_count_,
                          materials_[work.lanes.material[std::size_t(i)]].emission};
       secondary.child = shade_lane(work.lanes, i, depth, secondary.ray, secondary.hit, secondary.throughput,
                                    secondary.path_seed, lane_index[std::size_t(i)], counts, sink, next);

@@ -80,6 +80,7 @@ class BatchShader {
     Vec3fLanes<kLanes> reflection_origin;  // offset_ray_origin along it
     struct Light {  // one light's unshadowed term, direction and shadow ray at each lane
       Vec3Lanes<kLanes> term, to_light;
+      alignas(32) std::int64_t zero_term[kLanes];  // all ones where term == Vec3d(0.0), else 0
       LaneArray<kLanes> geometric_cosine;    // geometric normal . to_light (the convex rule)
       alignas(32) std::int64_t on_point[kLanes];  // nonzero: the light is at the point (no direction)
       Vec3fLanes<kLanes> shadow_origin;      // offset_ray_origin along to_light
@@ -160,6 +161,7 @@ class BatchShader {
     bool flip_back_face = false;  // BackFace::flipped: the shading normal turns to the viewer
     bool highlight = false;       // the specular term is evaluated (MaterialPlan::specular, or unpruned)
     bool reflects = false;        // MaterialPlan::reflection
+    bool reflects_light = false;  // reflects and reflective != (0, 0, 0): a reflection ray is traced
     double shininess = 0.0;
     Vec3d ambient{0.0}, diffuse{0.0}, specular{0.0}, reflective{0.0}, emission{0.0};
   };
@@ -187,6 +189,7 @@ class BatchShader {
   void shade_wave(Workspace& work, int depth, RayCounts& counts) const;
 
   const ShadingContext& context_;
+  std::size_t light_count_;  // Scene::lights.size()
   const batch_lanes::Kernels& kernels_;  // the AVX2 or the baseline build
   batch_lanes::OriginPolicy origin_policy_;
   std::vector<batch_lanes::LightLanes> lights_;  // parallel to Scene::lights
