@@ -1,6 +1,7 @@
 #include "rt/render/camera.h"
 
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <numbers>
 
@@ -67,17 +68,24 @@ void PixelCentreRays::set_rays4(Ray* rays, int i, int j) const {
   y = (y + lm::broadcast(down.y)) - lm::broadcast(w_.y);
   z = (z + lm::broadcast(down.z)) - lm::broadcast(w_.z);
   const lm::D4 scale = lm::broadcast(1.0) / lm::sqrt((x * x + y * y) + z * z);
-  alignas(16) float dx[4], dy[4], dz[4];
-  _mm_store_ps(dx, lm::to_float(x * scale));
-  _mm_store_ps(dy, lm::to_float(y * scale));
-  _mm_store_ps(dz, lm::to_float(z * scale));
-  for (int k = 0; k < 4; ++k) {
-    Ray& ray = rays[k];
-    ray.origin.x = eye_.x, ray.origin.y = eye_.y, ray.origin.z = eye_.z;
-    ray.direction.x = dx[k], ray.direction.y = dy[k], ray.direction.z = dz[k];
-    ray.tnear = 0.0f;
-    ray.tfar = kInfinity;
-  }
+  const __m128 dx = lm::to_float(x * scale), dy = lm::to_float(y * scale), dz = lm::to_float(z * scale);
+  // Each Ray as two 16-byte halves, (origin, direction.x) and (direction.y, direction.z, tnear,
+  // tfar), put together by shuffles rather than field by field.
+  static_assert(sizeof(Ray) == 32 && offsetof(Ray, direction) == 12 && offsetof(Ray, tnear) == 24 &&
+                offsetof(Ray, tfar) == 28);
+  const __m128 eye = _mm_setr_ps(eye_.x, eye_.y, eye_.z, 0.0f), eye_z = _mm_set1_ps(eye_.z);
+  const __m128 tail = _mm_setr_ps(0.0f, kInfinity, 0.0f, kInfinity);  // (tnear, tfar) twice
+  const __m128 zx01 = _mm_unpacklo_ps(eye_z, dx), zx23 = _mm_unpackhi_ps(eye_z, dx);  // (z, dx_k, z, dx_k+1)
+  const __m128 yz01 = _mm_unpacklo_ps(dy, dz), yz23 = _mm_unpackhi_ps(dy, dz);      // (dy_k, dz_k, dy_k+1, dz_k+1)
+  const auto put = [&](int k, __m128 front, __m128 back) {
+    float* const ray = reinterpret_cast<float*>(rays + k);
+    _mm_storeu_ps(ray, front);
+    _mm_storeu_ps(ray + 4, back);
+  };
+  put(0, _mm_shuffle_ps(eye, zx01, _MM_SHUFFLE(1, 0, 1, 0)), _mm_movelh_ps(yz01, tail));
+  put(1, _mm_shuffle_ps(eye, zx01, _MM_SHUFFLE(3, 2, 1, 0)), _mm_movehl_ps(tail, yz01));
+  put(2, _mm_shuffle_ps(eye, zx23, _MM_SHUFFLE(1, 0, 1, 0)), _mm_movelh_ps(yz23, tail));
+  put(3, _mm_shuffle_ps(eye, zx23, _MM_SHUFFLE(3, 2, 1, 0)), _mm_movehl_ps(tail, yz23));
 }
 
 Vec2d pixel_sample_offset(int i, int j, int index, int count) {

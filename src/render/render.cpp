@@ -216,11 +216,14 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   std::mutex progress_mutex;
   const auto cancelled = [&] { return options.cancel && options.cancel->load(std::memory_order_relaxed); };
 
-  // One sample's colour, with the NaN/Inf guard: a non-finite colour becomes black and is counted.
-  const auto guarded = [](Color c, ThreadState& state, std::uint64_t pixel) {
-    if (std::isfinite(c.r) && std::isfinite(c.g) && std::isfinite(c.b)) return c;
+  // One sample's colour at pixel (x, y), with the NaN/Inf guard: a non-finite colour becomes black
+  // and is counted. x - x is 0 for a finite x and NaN for an infinite or NaN one: one test for the
+  // three channels.
+  const auto guarded = [width](Color c, ThreadState& state, int x, int y) {
+    if ((c.r - c.r) + (c.g - c.g) + (c.b - c.b) == 0.0f) [[likely]]
+      return c;
     ++state.non_finite;
-    state.first_non_finite = std::min(state.first_non_finite, pixel);
+    state.first_non_finite = std::min(state.first_non_finite, std::uint64_t(y) * std::uint64_t(width) + std::uint64_t(x));
     return Color(0.0f);
   };
 
@@ -239,27 +242,26 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
     RayCounts& counts = state.counts;
     PendingShading& pending = state.pending;
     // The block's pixels packet by packet (each packet's row by row); packet p is pixels
-    // [packet_start[p], packet_start[p + 1]).
-    std::array<int, kBlockPixels> xs, ys;
+    // [packet_start[p], packet_start[p + 1]). Pixel k is (xs[k], ys[k]), at cell[k] of the block's
+    // colour buffer (row-major, kBlock a row); row_of_four[k]: pixels k .. k + 3 are a packet's
+    // whole row.
+    std::array<int, kBlockPixels> xs, ys, cell;
+    std::array<bool, kBlockPixels> row_of_four;
     std::array<int, kBlockPixels / kPacketPixels + 1> packet_start;
     int n = 0, packets = 0;
     for (int py = by0; py < by1; py += kPacket)
       for (int px = bx0; px < bx1; px += kPacket) {
         packet_start[std::size_t(packets++)] = n;
+        const int row_end = std::min(px + kPacket, bx1);
         for (int y = py; y < std::min(py + kPacket, by1); ++y)
-          for (int x = px; x < std::min(px + kPacket, bx1); ++x, ++n) {
+          for (int x = px; x < row_end; ++x, ++n) {
             xs[std::size_t(n)] = x;
             ys[std::size_t(n)] = y;
+            cell[std::size_t(n)] = (y - by0) * kBlock + x - bx0;
+            row_of_four[std::size_t(n)] = x == px && row_end - px == 4;
           }
       }
     packet_start[std::size_t(packets)] = n;
-    // Whether pixels k .. k + 3 are four neighbours along one row.
-    const auto is_row_of_four = [&](int k) {
-      if (k + 4 > n) return false;
-      for (int d = 1; d < 4; ++d)
-        if (xs[std::size_t(k + d)] != xs[std::size_t(k)] + d || ys[std::size_t(k + d)] != ys[std::size_t(k)]) return false;
-      return true;
-    };
     std::array<bool, kBlockPixels> timed{};
     std::array<std::uint64_t, kBlockPixels>& ticks = state.ticks;  // per timed pixel: its loop ticks this sample
     bool block_timed = false;  // any pixel of the block timed: only then are its queries timed
@@ -275,7 +277,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
     for (int s = first_sample; s < end_sample; ++s) {
       if (spp == 1)
         for (int k = 0; k < n;) {
-          if (is_row_of_four(k)) {  // a packet's row: its rays in SIMD lanes
+          if (row_of_four[k]) {  // its rays in SIMD lanes
             centre_rays.set_rays4(&rays[std::size_t(k)], xs[k], ys[k]);
             k += 4;
           } else {
@@ -364,22 +366,27 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
       // reloaded after every store of a colour.
       Color* const block_colors = state.block_colors.data();
       const std::span<const std::uint8_t> blocked = state.shadows.blocked;
+      const auto color_of = [&](int k) {
+        return guarded(pixel_of[k] < 0 ? batch.background() : finish_camera_hit(pending, std::size_t(pixel_of[k]), blocked),
+                       state, xs[k], ys[k]);
+      };
       const bool store_colors = spp == 1 || one_sample;
+      if (store_colors && !block_timed) {  // the common case, without the timing and sum branches
+        for (int k = 0; k < n; ++k) block_colors[cell[k]] = color_of(k);
+        continue;
+      }
       for (int k = 0; k < n; ++k) {
         const std::uint64_t start = timed[k] ? __rdtsc() : 0;
-        const std::uint64_t pixel = std::uint64_t(ys[k]) * std::uint64_t(width) + std::uint64_t(xs[k]);
-        const Color c = guarded(
-            pixel_of[k] < 0 ? batch.background() : finish_camera_hit(pending, std::size_t(pixel_of[k]), blocked), state,
-            pixel);
+        const Color c = color_of(k);
         if (store_colors)
-          block_colors[(ys[k] - by0) * kBlock + xs[k] - bx0] = c;
+          block_colors[cell[k]] = c;
         else
           sums[k] += Vec3d(c);
         if (timed[k]) counts.loop_ticks += ticks[k] + (__rdtsc() - start);
       }
     }
     if (spp > 1 && !one_sample)
-      for (int k = 0; k < n; ++k) state.block_colors[std::size_t((ys[k] - by0) * kBlock + xs[k] - bx0)] = Color(sums[k] / double(spp));
+      for (int k = 0; k < n; ++k) state.block_colors[std::size_t(cell[k])] = Color(sums[k] / double(spp));
     stream_block(state.block_colors.data(), kBlock, bx0 - region.x0, by0 - region.y0, bx1 - bx0, by1 - by0, result.image);
     counts.camera += std::uint64_t(end_sample - first_sample) * std::uint64_t(n);
   };
