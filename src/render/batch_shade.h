@@ -148,7 +148,7 @@ class BatchShader {
 
   // The colour of a camera ray that hit nothing: the background, as finish_camera_hit gives it for
   // shade_camera_hit's record of the miss.
-  Color background() const { return Color(background_); }
+  Color background() const { return background_; }
 
   // Traces the block's reflection rays depth by depth, shades their hits (shadow rays traced one by
   // one, as find_color traces them) and sets each reflecting pixel's PendingShading::reflection.
@@ -194,7 +194,7 @@ class BatchShader {
   batch_lanes::OriginPolicy origin_policy_;
   std::vector<batch_lanes::LightLanes> lights_;  // parallel to Scene::lights
   bool enabled_ = false;
-  Vec3d background_;  // Settings::background
+  Color background_;  // Settings::background
   std::vector<PlainMaterial> materials_;
   // The runs of equal FlatScene::material_ids (flattening writes a model's triangles together):
   // run r starts at triangle run_first_[r] and has material run_material_[r]. With at most

@@ -107,6 +107,50 @@ class BlockShadows {
   std::vector<std::uint8_t> grouped_blocked_;
 };
 
+// Camera rays are traced in packets of kPacket x kPacket pixels and shaded in blocks of kBlock x
+// kBlock (see render_image's render_block): a block's reflection rays are one wavefront, its
+// shadow rays one batch. A block is a default tile: its wavefront of reflection rays (up to 256) is
+// traced with the BVH warmer than 8 x 8 blocks left it (dragon Whitted render / re-trace 1.33 ->
+// 1.31).
+constexpr int kPacket = 4;
+constexpr int kPacketPixels = kPacket * kPacket;
+constexpr int kBlock = 16;
+constexpr int kBlockPixels = kBlock * kBlock;
+static_assert(kPacketPixels <= BatchShader::kLanes, "a packet's camera hits must fit the batch shader's lanes");
+static_assert(kBlock % kPacket == 0);
+
+// The order of a block's pixels: packet by packet, each packet's row by row. Pixel k is at (dx[k],
+// dy[k]) from the block's corner and at cell[k] of its colour buffer (row-major, kBlock a row);
+// row_of_four[k]: pixels k .. k + 3 are a packet's whole row; packet p is pixels
+// [packet_start[p], packet_start[p + 1]).
+struct BlockLayout {
+  int pixels = 0, packets = 0;
+  std::array<int, kBlockPixels> dx, dy, cell;
+  std::array<bool, kBlockPixels> row_of_four;
+  std::array<int, kBlockPixels + 1> packet_start;
+};
+
+// The layout of a w x h block (w, h <= kBlock).
+BlockLayout layout_block(int w, int h) {
+  BlockLayout layout;
+  int n = 0;
+  for (int py = 0; py < h; py += kPacket)
+    for (int px = 0; px < w; px += kPacket) {
+      layout.packet_start[std::size_t(layout.packets++)] = n;
+      const int row_end = std::min(px + kPacket, w);
+      for (int y = py; y < std::min(py + kPacket, h); ++y)
+        for (int x = px; x < row_end; ++x, ++n) {
+          layout.dx[std::size_t(n)] = x;
+          layout.dy[std::size_t(n)] = y;
+          layout.cell[std::size_t(n)] = y * kBlock + x;
+          layout.row_of_four[std::size_t(n)] = x == px && row_end - px == 4;
+        }
+    }
+  layout.packet_start[std::size_t(layout.packets)] = n;
+  layout.pixels = n;
+  return layout;
+}
+
 // Copies a w x h block of pixels (`colors`, `pitch` pixels a row) to image pixels from (x, y)
 // with non-temporal stores: the image is not read again while rendering, so its 12 bytes a pixel
 // need not pass through the caches (and evict the scene's data) on the way to memory. Fenced, so
@@ -183,16 +227,6 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   result.region = region;
   result.image = Image(region.width(), region.height());
   result.tile_done.assign(std::size_t(tile_count), 0);
-  // Camera rays are traced in packets of kPacket x kPacket pixels and shaded in blocks of kBlock x
-  // kBlock (see render_block): a block's reflection rays are one wavefront, its shadow rays one batch.
-  // A block is a default tile: its wavefront of reflection rays (up to 256) is traced with the BVH
-  // warmer than 8 x 8 blocks left it (dragon Whitted render / re-trace 1.33 -> 1.31).
-  constexpr int kPacket = 4;
-  constexpr int kPacketPixels = kPacket * kPacket;
-  constexpr int kBlock = 16;
-  constexpr int kBlockPixels = kBlock * kBlock;
-  static_assert(kPacketPixels <= BatchShader::kLanes, "a packet's camera hits must fit the batch shader's lanes");
-  static_assert(kBlock % kPacket == 0);
   struct ThreadState {
     RayCounts counts;
     // Buffers of the camera blocks, reused from block to block.
@@ -238,30 +272,24 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   const bool sampled_lights = result.plan.area_lights != nullptr;  // the only reader of the path seed
   const BatchShader batch(context);
   const bool batching = options.batch_shading && batch.enabled();
+  const BlockLayout whole_layout = layout_block(kBlock, kBlock);
   const auto render_block = [&](int bx0, int by0, int bx1, int by1, ThreadState& state) {
     RayCounts& counts = state.counts;
     PendingShading& pending = state.pending;
-    // The block's pixels packet by packet (each packet's row by row); packet p is pixels
-    // [packet_start[p], packet_start[p + 1]). Pixel k is (xs[k], ys[k]), at cell[k] of the block's
-    // colour buffer (row-major, kBlock a row); row_of_four[k]: pixels k .. k + 3 are a packet's
-    // whole row.
-    std::array<int, kBlockPixels> xs, ys, cell;
-    std::array<bool, kBlockPixels> row_of_four;
-    std::array<int, kBlockPixels / kPacketPixels + 1> packet_start;
-    int n = 0, packets = 0;
-    for (int py = by0; py < by1; py += kPacket)
-      for (int px = bx0; px < bx1; px += kPacket) {
-        packet_start[std::size_t(packets++)] = n;
-        const int row_end = std::min(px + kPacket, bx1);
-        for (int y = py; y < std::min(py + kPacket, by1); ++y)
-          for (int x = px; x < row_end; ++x, ++n) {
-            xs[std::size_t(n)] = x;
-            ys[std::size_t(n)] = y;
-            cell[std::size_t(n)] = (y - by0) * kBlock + x - bx0;
-            row_of_four[std::size_t(n)] = x == px && row_end - px == 4;
-          }
-      }
-    packet_start[std::size_t(packets)] = n;
+    // The block's pixels (a whole block's layout is made once); pixel k is (xs[k], ys[k]).
+    BlockLayout edge_layout;
+    const bool whole = bx1 - bx0 == kBlock && by1 - by0 == kBlock;
+    if (!whole) edge_layout = layout_block(bx1 - bx0, by1 - by0);
+    const BlockLayout& layout = whole ? whole_layout : edge_layout;
+    const int n = layout.pixels, packets = layout.packets;
+    const std::array<int, kBlockPixels + 1>& packet_start = layout.packet_start;
+    const std::array<int, kBlockPixels>& cell = layout.cell;
+    const std::array<bool, kBlockPixels>& row_of_four = layout.row_of_four;
+    std::array<int, kBlockPixels> xs, ys;
+    for (int k = 0; k < n; ++k) {
+      xs[std::size_t(k)] = bx0 + layout.dx[std::size_t(k)];
+      ys[std::size_t(k)] = by0 + layout.dy[std::size_t(k)];
+    }
     std::array<bool, kBlockPixels> timed{};
     std::array<std::uint64_t, kBlockPixels>& ticks = state.ticks;  // per timed pixel: its loop ticks this sample
     bool block_timed = false;  // any pixel of the block timed: only then are its queries timed
@@ -318,6 +346,23 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
         const int first = packet_start[std::size_t(p)], count = packet_start[std::size_t(p) + 1] - first;
         if (batching)  // the timed pixels are left to shade_camera_hit, which times them
           batch.prepare(packet_of(rays, p), packet_of(hits, p), packet_of(timed, p), state.batch);
+        if (batching && !block_timed) {  // the loop below without its timing branches
+          for (int k = first; k < first + count; ++k) {
+            const bool batched = state.batch.lane_of[std::size_t(k - first)] >= 0;
+            if (!batched && !hits[k].found()) {
+              pixel_of[k] = -1;
+              continue;
+            }
+            pixel_of[k] = static_cast<std::int32_t>(pending.pixels.size());
+            const std::uint64_t path_seed = sampled_lights ? pixel_path_seed(xs[k], ys[k], s) : 0;
+            if (batched)
+              batch.finish_camera_hit(state.batch, k - first, rays[std::size_t(k)], hits[std::size_t(k)], path_seed,
+                                      counts, pending);
+            else
+              shade_camera_hit(context, rays[k], hits[k], path_seed, counts, pending);
+          }
+          return;
+        }
         for (int k = first; k < first + count; ++k) {
           const int lane = k - first;
           if (batching && !timed[k] && !hits[k].found()) {
