@@ -158,6 +158,7 @@ void BatchShader::prepare(std::span<const Ray> rays, std::span<const Hit> hits, 
     work.lane_of[k] = static_cast<std::int8_t>(batched ? count++ : -1);
   }
   work.lanes.count = count;
+  if (count == 0) return;
   if (std::size_t(count) == hits.size()) {  // every hit batched: the lanes are the packet's own
     compute_lanes(work.lanes, rays.data(), hits.data(), 0);
     return;
@@ -407,13 +408,13 @@ void BatchShader::shade_wave(Workspace& work, int depth, RayCounts& counts) cons
   // Each hit's triangle indices are requested while the next rays are traced, its vertices two
   // rays later (once the indices have arrived).
   constexpr std::size_t kLag = 2;
-  for (std::size_t s = 0; s < wave.size(); ++s) {
+  const std::size_t count = wave.size();  // the wave does not change below (only `next` grows)
+  for (std::size_t s = 0; s < count; ++s) {
     wave[s].hit = context_.accel.intersect(wave[s].ray);
     prefetch_triangles(std::span(&wave[s].hit, 1));
     if (s >= kLag) prefetch_vertices(std::span(&wave[s - kLag].hit, 1));
   }
-  for (std::size_t s = wave.size() > kLag ? wave.size() - kLag : 0; s < wave.size(); ++s)
-    prefetch_vertices(std::span(&wave[s].hit, 1));
+  for (std::size_t s = count > kLag ? count - kLag : 0; s < count; ++s) prefetch_vertices(std::span(&wave[s].hit, 1));
   std::array<Ray, kLanes> lane_rays;
   std::array<Hit, kLanes> lane_hits;
   std::array<std::int32_t, kLanes> lane_index;
@@ -430,7 +431,7 @@ void BatchShader::shade_wave(Workspace& work, int depth, RayCounts& counts) cons
     work.lanes.count = 0;
   };
   work.lanes.count = 0;
-  for (std::size_t s = 0; s < wave.size(); ++s) {
+  for (std::size_t s = 0; s < count; ++s) {
     Secondary& secondary = wave[s];
     secondary.batched = batchable(secondary.hit);
     if (!secondary.batched) {  // find_color's own way, its reflections included
