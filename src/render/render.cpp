@@ -317,6 +317,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
         for (int k = 0; k < n; ++k) rays[k] = ray_through_pixel_sample(frame, xs[k], ys[k], s, spp);
       pending.clear();
       std::array<std::int32_t, kBlockPixels> pixel_of;  // per pixel k: its record in pending.pixels, or -1
+      std::array<bool, kBlockPixels> packet_hit;         // per packet: some ray of it hit
       if (batching) batch.start_block(state.batch);
       // Packet p is traced, then shaded two packets later: the triangle indices its hits need are
       // requested after its trace, their vertices after the next one, so that the batch shader's
@@ -332,6 +333,8 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
                                                              [](bool t) { return t; });
         const std::uint64_t start = packet_timed ? __rdtsc() : 0;
         accel.intersect_coherent(packet_of(rays, p), packet_of(hits, p));
+        packet_hit[std::size_t(p)] = std::any_of(hits.begin() + first, hits.begin() + first + count,
+                                                 [](const Hit& hit) { return hit.found(); });
         if (packet_timed) {
           const std::uint64_t share = (__rdtsc() - start) / std::uint64_t(count);
           if (counts.intersect_ticks_per_depth.empty()) counts.intersect_ticks_per_depth.resize(1, 0);
@@ -344,6 +347,10 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
       };
       const auto shade_packet = [&](int p) {
         const int first = packet_start[std::size_t(p)], count = packet_start[std::size_t(p) + 1] - first;
+        if (batching && !block_timed && !packet_hit[std::size_t(p)]) {  // the background, without records
+          std::fill_n(pixel_of.begin() + first, count, -1);
+          return;
+        }
         if (batching)  // the timed pixels are left to shade_camera_hit, which times them
           batch.prepare(packet_of(rays, p), packet_of(hits, p), packet_of(timed, p), state.batch);
         if (batching && !block_timed) {  // the loop below without its timing branches
@@ -384,9 +391,10 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
       for (int p = 0; p < packets + 2; ++p) {
         if (p < packets) {
           trace_packet(p);
-          if (batching) batch.prefetch_triangles(packet_of(hits, p));
+          if (batching && packet_hit[std::size_t(p)]) batch.prefetch_triangles(packet_of(hits, p));
         }
-        if (batching && p >= 1 && p <= packets) batch.prefetch_vertices(packet_of(hits, p - 1));
+        if (batching && p >= 1 && p <= packets && packet_hit[std::size_t(p - 1)])
+          batch.prefetch_vertices(packet_of(hits, p - 1));
         if (p >= 2) shade_packet(p - 2);
       }
       if (batching) batch.trace_reflections(state.batch, counts, pending);
