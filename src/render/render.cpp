@@ -273,6 +273,8 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
   const BatchShader batch(context);
   const bool batching = options.batch_shading && batch.enabled();
   const BlockLayout whole_layout = layout_block(kBlock, kBlock);
+  const Color background = batch.background();
+  const bool background_is_finite = std::isfinite(background.r) && std::isfinite(background.g) && std::isfinite(background.b);
   const auto render_block = [&](int bx0, int by0, int bx1, int by1, ThreadState& state) {
     RayCounts& counts = state.counts;
     PendingShading& pending = state.pending;
@@ -425,7 +427,13 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
       };
       const bool store_colors = spp == 1 || one_sample;
       if (store_colors && !block_timed) {  // the common case, without the timing and sum branches
-        for (int k = 0; k < n; ++k) block_colors[cell[k]] = color_of(k);
+        for (int p = 0; p < packets; ++p)
+          if (batching && !packet_hit[std::size_t(p)] && background_is_finite)
+            for (int k = packet_start[std::size_t(p)]; k < packet_start[std::size_t(p) + 1]; ++k)
+              block_colors[cell[k]] = background;
+          else
+            for (int k = packet_start[std::size_t(p)]; k < packet_start[std::size_t(p) + 1]; ++k)
+              block_colors[cell[k]] = color_of(k);
         continue;
       }
       for (int k = 0; k < n; ++k) {
