@@ -193,12 +193,12 @@ bool EmitterSampler::needs_spherical(const EmitterTriangle& t) const {
   return sampling_ != LightSampling::automatic || glm::dot(t.normal, point_ - t.p0) > 0.0;
 }
 
-EmitterSampler::View EmitterSampler::view_with(std::size_t triangle, const SphericalTriangle& spherical) const {
-  View view;
+void EmitterSampler::set_view(std::size_t triangle, const SphericalTriangle& spherical, View& view) const {
   view.spherical = spherical;
   view.by_solid_angle = spherical.valid() && (sampling_ == LightSampling::solid_angle ||
                                               (spherical.solid_angle() >= kMinSolidAngleSampling &&
                                                spherical.solid_angle() <= kMaxSolidAngleSampling));
+  view.radiance_over_pdf = Vec3d(0.0);
   if (view.by_solid_angle) {
     // weigh's value: the triangle's probability as choose computes it.
     const std::vector<double>& cdf = emitter_.cdf;
@@ -206,6 +206,11 @@ EmitterSampler::View EmitterSampler::view_with(std::size_t triangle, const Spher
     view.radiance_over_pdf =
         Vec3d(scene_.materials[emitter_.material].emission) * (spherical.solid_angle() / probability);
   }
+}
+
+EmitterSampler::View EmitterSampler::view_with(std::size_t triangle, const SphericalTriangle& spherical) const {
+  View view;
+  set_view(triangle, spherical, view);
   return view;
 }
 
@@ -229,7 +234,7 @@ void EmitterSampler::view_cached_triangles(const SphericalTriangle* seen) {
     which[count++] = i;
   }
   if (seen) {
-    for (std::size_t k = 0; k < count; ++k) cache_[which[k]] = view_with(which[k], seen[which[k]]);
+    for (std::size_t k = 0; k < count; ++k) set_view(which[k], seen[which[k]], cache_[which[k]]);
     cached_ = true;
     return;
   }
@@ -237,7 +242,7 @@ void EmitterSampler::view_cached_triangles(const SphericalTriangle* seen) {
   std::array<SphericalTriangle, kCachedTriangles> spherical{SphericalTriangle(unset), SphericalTriangle(unset),
                                                             SphericalTriangle(unset), SphericalTriangle(unset)};
   SphericalTriangle::set_up_many(point_, std::span(corners).first(count), spherical);
-  for (std::size_t k = 0; k < count; ++k) cache_[which[k]] = view_with(which[k], spherical[k]);
+  for (std::size_t k = 0; k < count; ++k) set_view(which[k], spherical[k], cache_[which[k]]);
   cached_ = true;
 }
 

@@ -42,6 +42,11 @@ using F4 = __m128;  // four float32 lanes
 RT_LANE_INLINE D4 broadcast(double x) {
   return {_mm256_set1_pd(x)};
 }
+// Lanes (a, b, c, d) from scalars, without a trip through memory: a wide load of values just
+// stored one by one waits for the stores (store forwarding fails when a load spans several).
+RT_LANE_INLINE D4 set(double a, double b, double c, double d) {
+  return {_mm256_setr_pd(a, b, c, d)};
+}
 RT_LANE_INLINE void load(D4& out, const double* p) {
   out.v = _mm256_loadu_pd(p);
 }
@@ -158,6 +163,9 @@ using F4 = __m128;  // four float32 lanes
 
 RT_LANE_INLINE D4 broadcast(double x) {
   return {_mm_set1_pd(x), _mm_set1_pd(x)};
+}
+RT_LANE_INLINE D4 set(double a, double b, double c, double d) {
+  return {_mm_setr_pd(a, b), _mm_setr_pd(c, d)};
 }
 
 RT_LANE_INLINE void load(D4& out, const double* p) {

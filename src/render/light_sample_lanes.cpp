@@ -383,11 +383,8 @@ void facing(const Shading& shading, const Chunk& chunk, FacingOutput& out) {
 
 void set_origins(Shading& shading) {
   // One lane per axis (the fourth unused): offset_ray_origin along n, then along -n.
-  alignas(32) double point[4] = {shading.point[0], shading.point[1], shading.point[2], 0.0};
-  alignas(32) double normal[4] = {shading.geometric_normal[0], shading.geometric_normal[1], shading.geometric_normal[2], 0.0};
-  D4 p, n;
-  lm::load(p, point);
-  lm::load(n, normal);
+  const D4 p = lm::set(shading.point[0], shading.point[1], shading.point[2], 0.0);
+  const D4 n = lm::set(shading.geometric_normal[0], shading.geometric_normal[1], shading.geometric_normal[2], 0.0);
   for (int side = 0; side < 2; ++side) {
     const D4 away = side == 0 ? n : -n;
     const lm::F4 origin = shading.fixed_offset ? lm::to_float(p + lm::broadcast(shading.epsilon) * away)
