@@ -127,7 +127,7 @@ struct BlockLayout {
   int pixels = 0, packets = 0;
   std::array<int, kBlockPixels> dx, dy, cell;
   std::array<bool, kBlockPixels> row_of_four;
-  std::array<int, kBlockPixels + 1> packet_start;
+  std::array<int, kBlockPixels / kPacketPixels + 1> packet_start;
 };
 
 // The layout of a w x h block (w, h <= kBlock).
@@ -284,7 +284,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
     if (!whole) edge_layout = layout_block(bx1 - bx0, by1 - by0);
     const BlockLayout& layout = whole ? whole_layout : edge_layout;
     const int n = layout.pixels, packets = layout.packets;
-    const std::array<int, kBlockPixels + 1>& packet_start = layout.packet_start;
+    const std::array<int, kBlockPixels / kPacketPixels + 1>& packet_start = layout.packet_start;
     const std::array<int, kBlockPixels>& cell = layout.cell;
     const std::array<bool, kBlockPixels>& row_of_four = layout.row_of_four;
     std::array<int, kBlockPixels> xs, ys;
@@ -319,7 +319,7 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
         for (int k = 0; k < n; ++k) rays[k] = ray_through_pixel_sample(frame, xs[k], ys[k], s, spp);
       pending.clear();
       std::array<std::int32_t, kBlockPixels> pixel_of;  // per pixel k: its record in pending.pixels, or -1
-      std::array<bool, kBlockPixels> packet_hit;         // per packet: some ray of it hit
+      std::array<bool, kBlockPixels / kPacketPixels> packet_hit;  // per packet: some ray of it hit
       if (batching) batch.start_block(state.batch);
       // Packet p is traced, then shaded two packets later: the triangle indices its hits need are
       // requested after its trace, their vertices after the next one, so that the batch shader's
@@ -422,8 +422,8 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
       Color* const block_colors = state.block_colors.data();
       const std::span<const std::uint8_t> blocked = state.shadows.blocked;
       const auto color_of = [&](int k) {
-        return guarded(pixel_of[k] < 0 ? batch.background() : finish_camera_hit(pending, std::size_t(pixel_of[k]), blocked),
-                       state, xs[k], ys[k]);
+        return guarded(pixel_of[k] < 0 ? background : finish_camera_hit(pending, std::size_t(pixel_of[k]), blocked), state,
+                       xs[k], ys[k]);
       };
       const bool store_colors = spp == 1 || one_sample;
       if (store_colors && !block_timed) {  // the common case, without the timing and sum branches
