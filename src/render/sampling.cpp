@@ -62,13 +62,13 @@ std::uint32_t permute(std::uint32_t i, std::uint32_t length, std::uint32_t patte
 [[gnu::always_inline]] inline void permute_all(std::uint32_t* v, int n, std::uint32_t length, std::uint32_t pattern) {
   const std::uint32_t w = cover_mask(length);
   for (int k = 0; k < n; ++k) v[k] = hash_round(v[k], w, pattern);
+  if (w == length - 1) {  // a power of two: every hash (masked by w) is already below it, no walk
+    for (int k = 0; k < n; ++k) v[k] = (v[k] + pattern) & w;
+    return;
+  }
   for (int k = 0; k < n; ++k)
     while (v[k] >= length) v[k] = hash_round(v[k], w, pattern);
-  if ((length & (length - 1)) == 0) {
-    for (int k = 0; k < n; ++k) v[k] = (v[k] + pattern) & (length - 1);
-  } else {
-    for (int k = 0; k < n; ++k) v[k] = (v[k] + pattern) % length;
-  }
+  for (int k = 0; k < n; ++k) v[k] = (v[k] + pattern) % length;
 }
 
 // Kensler's hash of (i, pattern) to [0, 1) (listing 4), kept in double: 32 bits of jitter.
