@@ -127,10 +127,23 @@ constexpr std::size_t kCmjChunk = 64;
   }
   permute_all(sx, n, columns, pattern * 0x68bc21ebu);
   permute_all(sy, n, rows, pattern * 0x02e5be93u);
-  for (int k = 0; k < n; ++k) {
-    const double jx = jitter(s[k], pattern * 0x967a889bu), jy = jitter(s[k], pattern * 0x368cc8b7u);
-    out[std::size_t(k)] = {std::min((sx[k] + (sy[k] + jx) / rows) / columns, 1.0 - 0x1p-53),
-                           std::min((s[k] + jy) / count, 1.0 - 0x1p-53)};
+  const auto points = [&](auto over_rows, auto over_columns, auto over_count) {
+    for (int k = 0; k < n; ++k) {
+      const double jx = jitter(s[k], pattern * 0x967a889bu), jy = jitter(s[k], pattern * 0x368cc8b7u);
+      out[std::size_t(k)] = {std::min(over_columns(sx[k] + over_rows(sy[k] + jx)), 1.0 - 0x1p-53),
+                             std::min(over_count(s[k] + jy), 1.0 - 0x1p-53)};
+    }
+  };
+  const auto is_power_of_two = [](std::uint32_t x) { return (x & (x - 1)) == 0; };
+  if (is_power_of_two(rows) && is_power_of_two(columns) && is_power_of_two(count)) {
+    // Dividing by a power of two is multiplying by its reciprocal, exactly (the values here are far
+    // from underflow): the same bits without the divisions' latency.
+    const double by_rows = 1.0 / rows, by_columns = 1.0 / columns, by_count = 1.0 / count;
+    points([=](double x) { return x * by_rows; }, [=](double x) { return x * by_columns; },
+           [=](double x) { return x * by_count; });
+  } else {
+    points([=](double x) { return x / rows; }, [=](double x) { return x / columns; },
+           [=](double x) { return x / count; });
   }
 }
 
