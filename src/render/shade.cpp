@@ -213,12 +213,17 @@ std::uint32_t count_bits(std::uint32_t x) {
   return (((x + (x >> 4)) & 0x0F0F0F0Fu) * 0x01010101u) >> 24;
 }
 
-// What ShadowRecorder's query and lit append for the samples of one chunk (add_area_light_terms'
-// loop over them below), with the same records in the same order and the same counts, written in
-// one pass: the rules are evaluated for all lanes at once as bit masks (lane k: bit k), and the
-// buffers grow once for the chunk rather than once per record.
-void record_chunk(ShadowRecorder& recorder, std::size_t slot, const light_sample_lanes::Chunk& chunk,
-                  const light_sample_lanes::EmitOutput& emitted, bool prune) {
+// The rules add_area_light_terms applies to each sample of a chunk, for all its lanes at once as
+// bit masks (lane k: bit k): a sample is valid, its term is kept where it is valid and, pruned, not
+// exactly (0, 0, 0), and traced where in addition its float32 tfar is positive. The counts are of
+// the samples each rule skips (sample_on_surface: invalid, or kept without a ray; sample_zero).
+struct SampleMasks {
+  std::uint32_t kept = 0, traced = 0;
+  std::uint32_t kept_count = 0, traced_count = 0;  // their set bits
+  std::uint64_t on_surface = 0, zero = 0;
+};
+SampleMasks sample_masks(const light_sample_lanes::Chunk& chunk, const light_sample_lanes::EmitOutput& emitted,
+                         bool prune) {
   static_assert(light_sample_lanes::kLanes % 4 == 0 && light_sample_lanes::kLanes <= 32);
   // Lanes past chunk.count are read (the arrays hold kLanes) but masked off.
   std::uint32_t valid = 0, nonzero = 0, positive = 0;
@@ -233,12 +238,35 @@ void record_chunk(ShadowRecorder& recorder, std::size_t slot, const light_sample
   }
   for (int k = 0; k < chunk.count; k += 4)
     positive |= std::uint32_t(_mm_movemask_ps(_mm_cmpgt_ps(_mm_load_ps(&emitted.tfar[k]), _mm_setzero_ps()))) << k;
-  const std::uint32_t in_use = chunk.count == 32 ? ~0u : (1u << chunk.count) - 1;
-  valid &= in_use;
-  const std::uint32_t kept = prune ? valid & nonzero : valid;  // a term is recorded
-  const std::uint32_t traced = kept & positive;                // with its shadow ray
+  valid &= chunk.count == 32 ? ~0u : (1u << chunk.count) - 1;
+  SampleMasks masks;
+  masks.kept = prune ? valid & nonzero : valid;
+  masks.traced = masks.kept & positive;
+  const std::uint32_t valid_count = count_bits(valid);
+  masks.kept_count = count_bits(masks.kept);
+  masks.traced_count = count_bits(masks.traced);
+  masks.on_surface = std::uint32_t(chunk.count) - valid_count + masks.kept_count - masks.traced_count;
+  masks.zero = valid_count - masks.kept_count;
+  return masks;
+}
 
-  const std::uint32_t valid_count = count_bits(valid), kept_count = count_bits(kept), ray_count = count_bits(traced);
+// Sample k's shadow ray (world space, float32), as add_area_light_terms traces it.
+Ray sample_shadow_ray(const light_sample_lanes::EmitOutput& emitted, int k) {
+  Ray ray;
+  ray.origin = {emitted.origin.x[k], emitted.origin.y[k], emitted.origin.z[k]};
+  ray.direction = {emitted.direction.x[k], emitted.direction.y[k], emitted.direction.z[k]};
+  ray.tfar = emitted.tfar[k];
+  return ray;
+}
+
+// What ShadowRecorder's query and lit append for the samples of one chunk, with the same records
+// in the same order and the same counts, written in one pass: the buffers grow once for the chunk
+// rather than once per record.
+void record_chunk(ShadowRecorder& recorder, std::size_t slot, const light_sample_lanes::Chunk& chunk,
+                  const light_sample_lanes::EmitOutput& emitted, bool prune) {
+  const SampleMasks masks = sample_masks(chunk, emitted, prune);
+  const std::uint32_t kept = masks.kept, traced = masks.traced, kept_count = masks.kept_count,
+                      ray_count = masks.traced_count;
 
   PendingShading& pending = recorder.pending;
   const std::size_t first_term = pending.terms.size(), first_ray = pending.shadow_rays.size();
@@ -263,9 +291,8 @@ void record_chunk(ShadowRecorder& recorder, std::size_t slot, const light_sample
     ++ray;
   }
   RayCounts& counts = recorder.counts;
-  counts.skipped[static_cast<int>(SkipRule::sample_on_surface)] +=
-      std::uint64_t(std::uint32_t(chunk.count) - valid_count + kept_count - ray_count);
-  counts.skipped[static_cast<int>(SkipRule::sample_zero)] += valid_count - kept_count;
+  counts.skipped[static_cast<int>(SkipRule::sample_on_surface)] += masks.on_surface;
+  counts.skipped[static_cast<int>(SkipRule::sample_zero)] += masks.zero;
   if (ray_count > 0) counts.add_shadow_query(recorder.light_count, slot, ray_count);
 }
 
@@ -331,12 +358,25 @@ template <class Shadows>
       kernels.facing(shading, chunk, factors);
       if (!all_zero && sampler.has_emission_texture()) apply_emission_texture(sampler, factors, chunk);
       kernels.emit(shading, chunk, factors, !all_zero, emitted);
-      if constexpr (std::is_base_of_v<ShadowRecorder, Shadows>)
-        if (!context.trace) {
+      if (!context.trace) {  // the rules as masks; their skips counted at once
+        if constexpr (std::is_base_of_v<ShadowRecorder, Shadows>) {
           record_chunk(shadows, slot, chunk, emitted, prune);
-          continue;
+        } else {
+          const SampleMasks masks = sample_masks(chunk, emitted, prune);
+          counts.skipped[static_cast<int>(SkipRule::sample_on_surface)] += masks.on_surface;
+          counts.skipped[static_cast<int>(SkipRule::sample_zero)] += masks.zero;
+          for (std::uint32_t lanes = masks.kept; lanes != 0; lanes &= lanes - 1) {
+            const int k = std::countr_zero(lanes);
+            const Vec3d term(emitted.term.x.v[k], emitted.term.y.v[k], emitted.term.z.v[k]);
+            if ((masks.traced >> k) & 1u)
+              shadows.query(slot, term, sample_shadow_ray(emitted, k), int(first) + k);
+            else
+              shadows.lit(slot, term, int(first) + k);
+          }
         }
-      for (int k = 0; k < chunk.count; ++k) {
+        continue;
+      }
+      for (int k = 0; k < chunk.count; ++k) {  // one by one, for the trace's notes in sample order
         if (!chunk.out.valid[k]) {
           skip(SkipRule::sample_on_surface, e, 1);
           continue;
@@ -348,11 +388,7 @@ template <class Shadows>
         }
         const int index = int(first) + k;
         if (emitted.tfar[k] > 0.0f) {
-          Ray shadow_ray;
-          shadow_ray.origin = {emitted.origin.x[k], emitted.origin.y[k], emitted.origin.z[k]};
-          shadow_ray.direction = {emitted.direction.x[k], emitted.direction.y[k], emitted.direction.z[k]};
-          shadow_ray.tfar = emitted.tfar[k];
-          shadows.query(slot, term, shadow_ray, index);
+          shadows.query(slot, term, sample_shadow_ray(emitted, k), index);
         } else {
           skip(SkipRule::sample_on_surface, e, 1);
           shadows.lit(slot, term, index);
