@@ -208,16 +208,11 @@ void EmitterSampler::set_view(std::size_t triangle, const SphericalTriangle& sph
   }
 }
 
-EmitterSampler::View EmitterSampler::view_with(std::size_t triangle, const SphericalTriangle& spherical) const {
-  View view;
-  set_view(triangle, spherical, view);
-  return view;
-}
-
 EmitterSampler::View EmitterSampler::view_of(std::size_t triangle) const {
   const EmitterTriangle& t = emitter_.triangles[triangle];
-  if (!needs_spherical(t)) return View{};
-  return view_with(triangle, SphericalTriangle(point_, t.p0, t.p1, t.p2));
+  View view;
+  if (needs_spherical(t)) set_view(triangle, SphericalTriangle(point_, t.p0, t.p1, t.p2), view);
+  return view;
 }
 
 void EmitterSampler::view_cached_triangles(const SphericalTriangle* seen) {

@@ -355,23 +355,6 @@ RenderResult render_image(const Scene& scene, const FlatScene& flat, const Accel
         }
         if (batching)  // the timed pixels are left to shade_camera_hit, which times them
           batch.prepare(packet_of(rays, p), packet_of(hits, p), packet_of(timed, p), state.batch);
-        if (batching && !block_timed) {  // the loop below without its timing branches
-          for (int k = first; k < first + count; ++k) {
-            const bool batched = state.batch.lane_of[std::size_t(k - first)] >= 0;
-            if (!batched && !hits[k].found()) {
-              pixel_of[k] = -1;
-              continue;
-            }
-            pixel_of[k] = static_cast<std::int32_t>(pending.pixels.size());
-            const std::uint64_t path_seed = sampled_lights ? pixel_path_seed(xs[k], ys[k], s) : 0;
-            if (batched)
-              batch.finish_camera_hit(state.batch, k - first, rays[std::size_t(k)], hits[std::size_t(k)], path_seed,
-                                      counts, pending);
-            else
-              shade_camera_hit(context, rays[k], hits[k], path_seed, counts, pending);
-          }
-          return;
-        }
         for (int k = first; k < first + count; ++k) {
           const int lane = k - first;
           if (batching && !timed[k] && !hits[k].found()) {

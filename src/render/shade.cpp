@@ -214,11 +214,12 @@ std::uint32_t count_bits(std::uint32_t x) {
 }
 
 // The rules add_area_light_terms applies to each sample of a chunk, for all its lanes at once as
-// bit masks (lane k: bit k): a sample is valid, its term is kept where it is valid and, pruned, not
-// exactly (0, 0, 0), and traced where in addition its float32 tfar is positive. The counts are of
-// the samples each rule skips (sample_on_surface: invalid, or kept without a ray; sample_zero).
+// bit masks (lane k: bit k; in_use: k < chunk.count): a sample is valid, its term is kept where it
+// is valid and, pruned, not exactly (0, 0, 0), and traced where in addition its float32 tfar is
+// positive. The counts are of the samples each rule skips (sample_on_surface: invalid, or kept
+// without a ray; sample_zero).
 struct SampleMasks {
-  std::uint32_t kept = 0, traced = 0;
+  std::uint32_t in_use = 0, valid = 0, kept = 0, traced = 0;
   std::uint32_t kept_count = 0, traced_count = 0;  // their set bits
   std::uint64_t on_surface = 0, zero = 0;
 };
@@ -238,11 +239,12 @@ SampleMasks sample_masks(const light_sample_lanes::Chunk& chunk, const light_sam
   }
   for (int k = 0; k < chunk.count; k += 4)
     positive |= std::uint32_t(_mm_movemask_ps(_mm_cmpgt_ps(_mm_load_ps(&emitted.tfar[k]), _mm_setzero_ps()))) << k;
-  valid &= chunk.count == 32 ? ~0u : (1u << chunk.count) - 1;
   SampleMasks masks;
-  masks.kept = prune ? valid & nonzero : valid;
+  masks.in_use = chunk.count == 32 ? ~0u : (1u << chunk.count) - 1;
+  masks.valid = valid & masks.in_use;
+  masks.kept = prune ? masks.valid & nonzero : masks.valid;
   masks.traced = masks.kept & positive;
-  const std::uint32_t valid_count = count_bits(valid);
+  const std::uint32_t valid_count = count_bits(masks.valid);
   masks.kept_count = count_bits(masks.kept);
   masks.traced_count = count_bits(masks.traced);
   masks.on_surface = std::uint32_t(chunk.count) - valid_count + masks.kept_count - masks.traced_count;
@@ -259,12 +261,11 @@ Ray sample_shadow_ray(const light_sample_lanes::EmitOutput& emitted, int k) {
   return ray;
 }
 
-// What ShadowRecorder's query and lit append for the samples of one chunk, with the same records
-// in the same order and the same counts, written in one pass: the buffers grow once for the chunk
-// rather than once per record.
-void record_chunk(ShadowRecorder& recorder, std::size_t slot, const light_sample_lanes::Chunk& chunk,
-                  const light_sample_lanes::EmitOutput& emitted, bool prune) {
-  const SampleMasks masks = sample_masks(chunk, emitted, prune);
+// What ShadowRecorder's query and lit append for the samples of one chunk (`masks` its rules),
+// with the same records in the same order and the same counts, written in one pass: the buffers
+// grow once for the chunk rather than once per record.
+void record_chunk(ShadowRecorder& recorder, std::size_t slot, const light_sample_lanes::EmitOutput& emitted,
+                  const SampleMasks& masks) {
   const std::uint32_t kept = masks.kept, traced = masks.traced, kept_count = masks.kept_count,
                       ray_count = masks.traced_count;
 
@@ -358,40 +359,31 @@ template <class Shadows>
       kernels.facing(shading, chunk, factors);
       if (!all_zero && sampler.has_emission_texture()) apply_emission_texture(sampler, factors, chunk);
       kernels.emit(shading, chunk, factors, !all_zero, emitted);
-      if (!context.trace) {  // the rules as masks; their skips counted at once
-        if constexpr (std::is_base_of_v<ShadowRecorder, Shadows>) {
-          record_chunk(shadows, slot, chunk, emitted, prune);
-        } else {
-          const SampleMasks masks = sample_masks(chunk, emitted, prune);
-          counts.skipped[static_cast<int>(SkipRule::sample_on_surface)] += masks.on_surface;
-          counts.skipped[static_cast<int>(SkipRule::sample_zero)] += masks.zero;
-          for (std::uint32_t lanes = masks.kept; lanes != 0; lanes &= lanes - 1) {
-            const int k = std::countr_zero(lanes);
-            const Vec3d term(emitted.term.x.v[k], emitted.term.y.v[k], emitted.term.z.v[k]);
-            if ((masks.traced >> k) & 1u)
-              shadows.query(slot, term, sample_shadow_ray(emitted, k), int(first) + k);
-            else
-              shadows.lit(slot, term, int(first) + k);
-          }
+      const SampleMasks masks = sample_masks(chunk, emitted, prune);
+      const bool tracing = context.trace;
+      if constexpr (std::is_base_of_v<ShadowRecorder, Shadows>)
+        if (!tracing) {
+          record_chunk(shadows, slot, emitted, masks);
+          continue;
         }
-        continue;
+      if (!tracing) {
+        counts.skipped[static_cast<int>(SkipRule::sample_on_surface)] += masks.on_surface;
+        counts.skipped[static_cast<int>(SkipRule::sample_zero)] += masks.zero;
       }
-      for (int k = 0; k < chunk.count; ++k) {  // one by one, for the trace's notes in sample order
-        if (!chunk.out.valid[k]) {
-          skip(SkipRule::sample_on_surface, e, 1);
+      // The kept samples in pattern order; when tracing, every sample, the skipped ones counted
+      // (and noted) one by one in that order.
+      for (std::uint32_t lanes = tracing ? masks.in_use : masks.kept; lanes != 0; lanes &= lanes - 1) {
+        const int k = std::countr_zero(lanes);
+        if (((masks.kept >> k) & 1u) == 0) {
+          skip((masks.valid >> k) & 1u ? SkipRule::sample_zero : SkipRule::sample_on_surface, e, 1);
           continue;
         }
         const Vec3d term(emitted.term.x.v[k], emitted.term.y.v[k], emitted.term.z.v[k]);
-        if (prune && term == Vec3d(0.0)) {
-          skip(SkipRule::sample_zero, e, 1);
-          continue;
-        }
-        const int index = int(first) + k;
-        if (emitted.tfar[k] > 0.0f) {
-          shadows.query(slot, term, sample_shadow_ray(emitted, k), index);
+        if ((masks.traced >> k) & 1u) {
+          shadows.query(slot, term, sample_shadow_ray(emitted, k), int(first) + k);
         } else {
-          skip(SkipRule::sample_on_surface, e, 1);
-          shadows.lit(slot, term, index);
+          if (tracing) skip(SkipRule::sample_on_surface, e, 1);
+          shadows.lit(slot, term, int(first) + k);
         }
       }
     }

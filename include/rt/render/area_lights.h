@@ -147,13 +147,12 @@ class EmitterSampler {
     Vec3d radiance_over_pdf{0.0};
   };
   // Whether `triangle` is sampled by solid angle if its spherical triangle allows, and the view
-  // that spherical triangle gives; view_of does both for one triangle. The first kCachedTriangles
-  // triangles' views are set up together, on the first sample that needs one of them.
+  // that spherical triangle gives, written into `view` in place (a View built on the stack and
+  // copied had its flag, just stored, read back by the copy's wide loads: a store-forwarding
+  // stall); view_of does both for one triangle. The first kCachedTriangles triangles' views are
+  // set up together, on the first sample that needs one of them.
   bool needs_spherical(const EmitterTriangle& triangle) const;
-  // view_with's view written into `view` in place (no View built on the stack and copied: its
-  // flag, just stored, would be read back by the copy's wide loads and stall store forwarding).
   void set_view(std::size_t triangle, const SphericalTriangle& spherical, View& view) const;
-  View view_with(std::size_t triangle, const SphericalTriangle& spherical) const;
   View view_of(std::size_t triangle) const;
   // The cached views, from the caller's spherical triangles (`seen`, see the constructor) or set up here.
   void view_cached_triangles(const SphericalTriangle* seen = nullptr);
